@@ -1,0 +1,79 @@
+"""Dihedral-angle change per interior edge: a direct measure of bending (numba, float64).
+
+For an edge (i, j) with opposite corners k0, k1 (:func:`clothtool.analysis.topology.interior_edges`)
+the triangles (i, j, k0) and (j, i, k1) have the normals n0 = (xj − xi) × (xk0 − xi) and
+n1 = (xi − xj) × (xk1 − xj), oriented alike, and the signed bending angle is
+
+    θ = atan2(ê · (n0 × n1), n0 · n1),   ê = (xj − xi)/‖xj − xi‖,
+
+the angle by which the normal turns across the edge (the exterior dihedral angle; 0 when the
+pair is flat). θ > 0 when the surface bends away from its normal (convex: on a closed surface
+with outward normals every edge has θ > 0), θ < 0 when it folds towards it. The change is
+θ_deformed − θ_reference wrapped to (−π, π].
+"""
+
+import math
+
+import numpy as np
+from numba import njit, prange
+
+from clothtool.analysis.kabsch import DEF_DEGENERATE, NONFINITE, REF_DEGENERATE, TRIANGLE_TOL
+
+
+@njit(cache=True)
+def _bend(x, i, j, k0, k1):
+    """Signed bending angle θ of edge (i, j) and whether either triangle is degenerate."""
+    e0, e1, e2 = x[j, 0] - x[i, 0], x[j, 1] - x[i, 1], x[j, 2] - x[i, 2]
+    a0, a1, a2 = x[k0, 0] - x[i, 0], x[k0, 1] - x[i, 1], x[k0, 2] - x[i, 2]
+    b0, b1, b2 = x[k1, 0] - x[j, 0], x[k1, 1] - x[j, 1], x[k1, 2] - x[j, 2]
+    n00, n01, n02 = e1 * a2 - e2 * a1, e2 * a0 - e0 * a2, e0 * a1 - e1 * a0  # e × a
+    n10, n11, n12 = b1 * e2 - b2 * e1, b2 * e0 - b0 * e2, b0 * e1 - b1 * e0  # (−e) × b
+    ee = e0 * e0 + e1 * e1 + e2 * e2
+    aa = a0 * a0 + a1 * a1 + a2 * a2
+    bb = b0 * b0 + b1 * b1 + b2 * b2
+    ab = (a0 - e0) ** 2 + (a1 - e1) ** 2 + (a2 - e2) ** 2  # ‖xk0 − xj‖²
+    ba = (b0 + e0) ** 2 + (b1 + e1) ** 2 + (b2 + e2) ** 2  # ‖xk1 − xi‖²
+    area0 = 0.5 * math.sqrt(n00 * n00 + n01 * n01 + n02 * n02)
+    area1 = 0.5 * math.sqrt(n10 * n10 + n11 * n11 + n12 * n12)
+    degenerate = not (area0 > TRIANGLE_TOL * max(ee, aa, ab) and area1 > TRIANGLE_TOL * max(ee, bb, ba))
+    c0 = n01 * n12 - n02 * n11
+    c1 = n02 * n10 - n00 * n12
+    c2 = n00 * n11 - n01 * n10
+    sin_part = (c0 * e0 + c1 * e1 + c2 * e2) / math.sqrt(ee)
+    return math.atan2(sin_part, n00 * n10 + n01 * n11 + n02 * n12), degenerate
+
+
+@njit(cache=True, parallel=True)
+def dihedral_change(x_ref, x_def, edges, opposite):
+    """Signed dihedral-angle change θ_def − θ_ref (radians, wrapped to (−π, π]) per edge.
+
+    Returns ``change`` (E,) and ``flags`` (E,) uint8: REF_DEGENERATE / DEF_DEGENERATE when either
+    triangle of the edge is degenerate (TRIANGLE_TOL), NONFINITE; flagged changes are NaN.
+    """
+    n = edges.shape[0]
+    change = np.empty(n)
+    flags = np.zeros(n, np.uint8)
+    for t in prange(n):
+        i, j, k0, k1 = edges[t, 0], edges[t, 1], opposite[t, 0], opposite[t, 1]
+        finite = True
+        for v in (i, j, k0, k1):
+            for k in range(3):
+                finite = finite and np.isfinite(x_ref[v, k]) and np.isfinite(x_def[v, k])
+        if not finite:
+            flags[t] = NONFINITE
+            change[t] = np.nan
+            continue
+        theta_ref, ref_bad = _bend(x_ref, i, j, k0, k1)
+        theta_def, def_bad = _bend(x_def, i, j, k0, k1)
+        f = (REF_DEGENERATE if ref_bad else 0) | (DEF_DEGENERATE if def_bad else 0)
+        flags[t] = f
+        if f:
+            change[t] = np.nan
+            continue
+        d = theta_def - theta_ref
+        if d > math.pi:
+            d -= 2.0 * math.pi
+        elif d <= -math.pi:
+            d += 2.0 * math.pi
+        change[t] = d
+    return change, flags
