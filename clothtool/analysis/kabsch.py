@@ -29,13 +29,14 @@ DEF_DEGENERATE = 2  # flag bit 1: deformed ring / triangle degenerate
 NONFINITE = 4  # flag bit 2: non-finite input coordinates
 AMBIGUOUS = 8  # flag bit 3 (vertices): the best rotation is not unique
 
-RING_TOL = 1e-6
+RING_TOL = 1e-4
 """A ring is degenerate (coincident or collinear points) when I₂ ≤ RING_TOL²·(tr A)², where A = Σ p pᵀ
 and I₂ is its second invariant (sum of the principal 2×2 minors); I₂/(tr A)² ≈ (rms width across
 the ring's axis / rms length along it)²."""
-GAP_TOL = 1e-9
+GAP_TOL = 1e-8
 """The rotation is ambiguous when the eigen-gap 2(σ2 + dσ3) of Horn's matrix is at most
-GAP_TOL·√(Σ‖p‖² Σ‖q‖²); a smaller gap would leave the rotation with errors above ~1e-7."""
+GAP_TOL·√(Σ‖p‖² Σ‖q‖²). For a rigid motion the relative gap is ≈ (width / length)² of the ring,
+so GAP_TOL = RING_TOL²; the eigenvector error is ≈ ε/(relative gap), at most ~2e-8 at the limit."""
 TRIANGLE_TOL = 1e-10
 """A triangle is degenerate when its area ≤ TRIANGLE_TOL × (its longest edge)²."""
 
