@@ -15,7 +15,7 @@ from clothtool.analysis.kabsch import (
     face_gradients3,
     vertex_rotations,
 )
-from clothtool.analysis.symeig import jacobi_eigh, sort_descending
+from clothtool.analysis.symeig import jacobi_eigh_batch, sort_descending
 from clothtool.analysis.topology import interior_edges, one_ring
 
 HYP = settings(deadline=None, max_examples=60, suppress_health_check=[HealthCheck.too_slow])
@@ -115,25 +115,28 @@ def test_interior_edges_have_two_faces_and_carry_the_orientation():
 
 
 @HYP
-@given(st.integers(0, 2**32 - 1), st.sampled_from([3, 4]), st.booleans())
-def test_jacobi_matches_numpy_eigh(seed, n, repeated):
+@given(st.integers(0, 2**32 - 1), st.sampled_from([3, 4]), st.integers(1, 9))
+def test_jacobi_batch_matches_numpy_eigh(seed, n, batch):
+    """Random spectra over six decades, with repeated and opposite eigenvalues mixed in."""
     rng = np.random.default_rng(seed)
-    q, _ = np.linalg.qr(rng.normal(size=(n, n)))
-    lam = rng.normal(size=n) * 10.0 ** rng.uniform(-3, 3)
-    if repeated:
-        lam[1] = lam[0]
-    A = (q * lam) @ q.T
-    A = 0.5 * (A + A.T)
-    a, v = A.copy(), np.empty((n, n))
-    sweeps = jacobi_eigh(a, v)
-    values, vectors = np.empty(n), np.empty((n, n))
-    sort_descending(a, v, values, vectors)
-    scale = np.abs(lam).max()
+    q, _ = np.linalg.qr(rng.normal(size=(batch, n, n)))
+    lam = rng.normal(size=(batch, n)) * 10.0 ** rng.uniform(-3, 3, size=(batch, 1))
+    lam[::2, 1] = lam[::2, 0]
+    lam[1::3, 2] = -lam[1::3, 0]
+    A = np.einsum("bij,bj,bkj->bik", q, lam, q)
+    A = 0.5 * (A + np.swapaxes(A, 1, 2))
+    a = A.transpose(1, 2, 0).copy()
+    v = np.empty_like(a)
+    sweeps = jacobi_eigh_batch(a, v)
     assert sweeps < 10
-    assert np.all(np.diff(values) <= 0)
-    np.testing.assert_allclose(values, np.linalg.eigvalsh(A)[::-1], rtol=0, atol=4e-15 * scale)
-    np.testing.assert_allclose(vectors @ vectors.T, np.eye(n), atol=2e-15)
-    np.testing.assert_allclose(vectors @ A, values[:, None] * vectors, atol=4e-15 * scale)
+    for k in range(batch):
+        values, vectors = np.empty(n), np.empty((n, n))
+        sort_descending(a, v, k, values, vectors)
+        scale = np.abs(lam[k]).max()
+        assert np.all(np.diff(values) <= 0)
+        np.testing.assert_allclose(values, np.linalg.eigvalsh(A[k])[::-1], rtol=0, atol=8e-15 * scale)
+        np.testing.assert_allclose(vectors @ vectors.T, np.eye(n), atol=4e-15)
+        np.testing.assert_allclose(vectors @ A[k], values[:, None] * vectors, atol=8e-15 * scale)
 
 
 # ---------------------------------------------------------------- vertex rotations

@@ -20,7 +20,7 @@ from numba import njit, prange
 from clothtool.analysis.kabsch import DEF_DEGENERATE, NONFINITE, REF_DEGENERATE, TRIANGLE_TOL
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _bend(x, i, j, k0, k1):
     """Signed bending angle θ of edge (i, j) and whether either triangle is degenerate."""
     e0, e1, e2 = x[j, 0] - x[i, 0], x[j, 1] - x[i, 1], x[j, 2] - x[i, 2]
@@ -43,7 +43,7 @@ def _bend(x, i, j, k0, k1):
     return math.atan2(sin_part, n00 * n10 + n01 * n11 + n02 * n12), degenerate
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, parallel=True, error_model="numpy")
 def dihedral_change(x_ref, x_def, edges, opposite):
     """Signed dihedral-angle change θ_def − θ_ref (radians, wrapped to (−π, π]) per edge.
 

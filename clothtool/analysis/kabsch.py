@@ -7,7 +7,8 @@ each set centred on its own mean, with reference points p and deformed points q:
 
 The rotation is found as Horn's unit quaternion (Horn 1987, J. Opt. Soc. Am. A 4:629): the
 eigenvector of the largest eigenvalue of the symmetric 4×4 matrix N(H), computed with the
-Jacobi solver of :mod:`clothtool.analysis.symeig`. The quaternion is a proper rotation by
+batched Jacobi solver of :mod:`clothtool.analysis.symeig` (H is divided by √(Σ‖p‖² Σ‖q‖²) ≥ σ1+σ2+σ3
+first, so that the tolerances are relative). The quaternion is a proper rotation by
 construction; in terms of the singular values σ1 ≥ σ2 ≥ σ3 of H and d = sign det H the
 eigenvalues of N are σ1+σ2+dσ3, σ1−σ2−dσ3, −σ1+σ2−dσ3, −σ1−σ2+dσ3, so the largest one is the
 Kabsch optimum *with* the reflection fix on the smallest singular direction, and planar rings
@@ -22,7 +23,7 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from clothtool.analysis.symeig import jacobi_eigh, sort_descending
+from clothtool.analysis.symeig import jacobi_eigh_batch, sort_descending
 
 REF_DEGENERATE = 1  # flag bit 0: reference ring / triangle degenerate
 DEF_DEGENERATE = 2  # flag bit 1: deformed ring / triangle degenerate
@@ -40,38 +41,42 @@ so GAP_TOL = RING_TOL²; the eigenvector error is ≈ ε/(relative gap), at most
 TRIANGLE_TOL = 1e-10
 """A triangle is degenerate when its area ≤ TRIANGLE_TOL × (its longest edge)²."""
 
-CHUNK = 256  # vertices / faces per parallel work item (scratch arrays are allocated per chunk)
+CHUNK = 64  # vertices / faces per batch: one parallel work item, solved in lockstep by Jacobi
 
 
-@njit(cache=True)
-def horn_rotation(h, a, v, rot):
-    """Proper rotation maximising tr(R H) (= minimising Σ‖R p − q‖² for H = Σ p qᵀ), written
-    into ``rot`` (3×3). ``a``, ``v`` are 4×4 scratch. Returns (λ_max, gap, angle): the largest
-    eigenvalue of Horn's N(H), its distance to the next one, and the rotation angle
-    2·atan2(‖q_xyz‖, |q_w|) in [0, π]."""
-    sxx, sxy, sxz = h[0, 0], h[0, 1], h[0, 2]
-    syx, syy, syz = h[1, 0], h[1, 1], h[1, 2]
-    szx, szy, szz = h[2, 0], h[2, 1], h[2, 2]
-    a[0, 0] = sxx + syy + szz
-    a[1, 1] = sxx - syy - szz
-    a[2, 2] = -sxx + syy - szz
-    a[3, 3] = -sxx - syy + szz
-    a[0, 1] = a[1, 0] = syz - szy
-    a[0, 2] = a[2, 0] = szx - sxz
-    a[0, 3] = a[3, 0] = sxy - syx
-    a[1, 2] = a[2, 1] = sxy + syx
-    a[1, 3] = a[3, 1] = szx + sxz
-    a[2, 3] = a[3, 2] = syz + szy
-    jacobi_eigh(a, v)
+@njit(cache=True, error_model="numpy")
+def horn_matrix(h, scale, a, k):
+    """Horn's symmetric 4×4 matrix N(H)/scale into ``a[:, :, k]``; its top eigenvector is the unit
+    quaternion (w, x, y, z) of the proper rotation maximising tr(R H) (Horn 1987, eq. 43)."""
+    sxx, sxy, sxz = h[0, 0] / scale, h[0, 1] / scale, h[0, 2] / scale
+    syx, syy, syz = h[1, 0] / scale, h[1, 1] / scale, h[1, 2] / scale
+    szx, szy, szz = h[2, 0] / scale, h[2, 1] / scale, h[2, 2] / scale
+    a[0, 0, k] = sxx + syy + szz
+    a[1, 1, k] = sxx - syy - szz
+    a[2, 2, k] = -sxx + syy - szz
+    a[3, 3, k] = -sxx - syy + szz
+    a[0, 1, k] = a[1, 0, k] = syz - szy
+    a[0, 2, k] = a[2, 0, k] = szx - sxz
+    a[0, 3, k] = a[3, 0, k] = sxy - syx
+    a[1, 2, k] = a[2, 1, k] = sxy + syx
+    a[1, 3, k] = a[3, 1, k] = szx + sxz
+    a[2, 3, k] = a[3, 2, k] = syz + szy
+
+
+@njit(cache=True, error_model="numpy")
+def quaternion_rotation(a, v, k, rot):
+    """After Jacobi on Horn's matrix k: the rotation of its top eigenvector into ``rot`` (3×3).
+    Returns (gap, angle): the distance from the largest eigenvalue to the next one and the
+    rotation angle 2·atan2(‖q_xyz‖, |q_w|) ∈ [0, π]."""
     top = 0
-    for k in range(1, 4):
-        if a[k, k] > a[top, top]:
-            top = k
+    for i in range(1, 4):
+        if a[i, i, k] > a[top, top, k]:
+            top = i
     second = -np.inf
-    for k in range(4):
-        if k != top and a[k, k] > second:
-            second = a[k, k]
-    w, x, y, z = v[0, top], v[1, top], v[2, top], v[3, top]
+    for i in range(4):
+        if i != top and a[i, i, k] > second:
+            second = a[i, i, k]
+    w, x, y, z = v[0, top, k], v[1, top, k], v[2, top, k], v[3, top, k]
     nrm = math.sqrt(w * w + x * x + y * y + z * z)
     w, x, y, z = w / nrm, x / nrm, y / nrm, z / nrm
     rot[0, 0] = 1.0 - 2.0 * (y * y + z * z)
@@ -83,11 +88,10 @@ def horn_rotation(h, a, v, rot):
     rot[2, 0] = 2.0 * (x * z - w * y)
     rot[2, 1] = 2.0 * (y * z + w * x)
     rot[2, 2] = 1.0 - 2.0 * (x * x + y * y)
-    angle = 2.0 * math.atan2(math.sqrt(x * x + y * y + z * z), abs(w))
-    return a[top, top], a[top, top] - second, angle
+    return a[top, top, k] - second, 2.0 * math.atan2(math.sqrt(x * x + y * y + z * z), abs(w))
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _ring_degenerate(a00, a11, a22, a01, a02, a12):
     """Coincident or collinear points, from the scatter matrix A = Σ p pᵀ (see RING_TOL)."""
     tr = a00 + a11 + a22
@@ -95,14 +99,16 @@ def _ring_degenerate(a00, a11, a22, a01, a02, a12):
     return i2 <= RING_TOL * RING_TOL * tr * tr
 
 
-@njit(cache=True)
-def _vertex_rotation(i, x_ref, x_def, offsets, neighbours, h, a, v, rot):
-    """Kabsch over vertex i and its one-ring; fills ``rot``, returns (flags, angle, residual)."""
+@njit(cache=True, error_model="numpy")
+def _ring_matrix(i, x_ref, x_def, offsets, neighbours, h, a, k, mean):
+    """Centre the ring of vertex i, put Horn's N(H)/√(Σ‖p‖² Σ‖q‖²) into ``a[:, :, k]`` (zeros for a
+    flagged ring) and the two ring means into ``mean`` (6,). Returns the ring's flags."""
+    a[:, :, k] = 0.0
     lo, hi = offsets[i], offsets[i + 1]
     m = hi - lo + 1
     mp0 = mp1 = mp2 = mq0 = mq1 = mq2 = 0.0
-    for k in range(lo - 1, hi):
-        j = i if k < lo else neighbours[k]
+    for kk in range(lo - 1, hi):
+        j = i if kk < lo else neighbours[kk]
         mp0 += x_ref[j, 0]
         mp1 += x_ref[j, 1]
         mp2 += x_ref[j, 2]
@@ -111,15 +117,14 @@ def _vertex_rotation(i, x_ref, x_def, offsets, neighbours, h, a, v, rot):
         mq2 += x_def[j, 2]
     mp0, mp1, mp2 = mp0 / m, mp1 / m, mp2 / m
     mq0, mq1, mq2 = mq0 / m, mq1 / m, mq2 / m
+    mean[0], mean[1], mean[2], mean[3], mean[4], mean[5] = mp0, mp1, mp2, mq0, mq1, mq2
     if not (np.isfinite(mp0 + mp1 + mp2) and np.isfinite(mq0 + mq1 + mq2)):
-        return NONFINITE, np.nan, np.nan
-    for r in range(3):
-        for c in range(3):
-            h[r, c] = 0.0
+        return NONFINITE
+    h[:, :] = 0.0
     p00 = p11 = p22 = p01 = p02 = p12 = 0.0
     q00 = q11 = q22 = q01 = q02 = q12 = 0.0
-    for k in range(lo - 1, hi):
-        j = i if k < lo else neighbours[k]
+    for kk in range(lo - 1, hi):
+        j = i if kk < lo else neighbours[kk]
         p0, p1, p2 = x_ref[j, 0] - mp0, x_ref[j, 1] - mp1, x_ref[j, 2] - mp2
         q0, q1, q2 = x_def[j, 0] - mq0, x_def[j, 1] - mq1, x_def[j, 2] - mq2
         h[0, 0] += p0 * q0
@@ -148,23 +153,27 @@ def _vertex_rotation(i, x_ref, x_def, offsets, neighbours, h, a, v, rot):
         flags |= REF_DEGENERATE
     if _ring_degenerate(q00, q11, q22, q01, q02, q12):
         flags |= DEF_DEGENERATE
-    if flags:
-        return flags, np.nan, np.nan
-    _, gap, angle = horn_rotation(h, a, v, rot)
-    if gap <= GAP_TOL * math.sqrt((p00 + p11 + p22) * (q00 + q11 + q22)):
-        return AMBIGUOUS, np.nan, np.nan
+    if flags == 0:
+        horn_matrix(h, math.sqrt((p00 + p11 + p22) * (q00 + q11 + q22)), a, k)
+    return flags
+
+
+@njit(cache=True, error_model="numpy")
+def _ring_residual(i, x_ref, x_def, offsets, neighbours, mean, rot):
+    """√(mean over the ring of ‖R p − q‖²), summed directly (no cancellation)."""
+    lo, hi = offsets[i], offsets[i + 1]
     ss = 0.0
-    for k in range(lo - 1, hi):
-        j = i if k < lo else neighbours[k]
-        p0, p1, p2 = x_ref[j, 0] - mp0, x_ref[j, 1] - mp1, x_ref[j, 2] - mp2
-        d0 = rot[0, 0] * p0 + rot[0, 1] * p1 + rot[0, 2] * p2 - (x_def[j, 0] - mq0)
-        d1 = rot[1, 0] * p0 + rot[1, 1] * p1 + rot[1, 2] * p2 - (x_def[j, 1] - mq1)
-        d2 = rot[2, 0] * p0 + rot[2, 1] * p1 + rot[2, 2] * p2 - (x_def[j, 2] - mq2)
+    for kk in range(lo - 1, hi):
+        j = i if kk < lo else neighbours[kk]
+        p0, p1, p2 = x_ref[j, 0] - mean[0], x_ref[j, 1] - mean[1], x_ref[j, 2] - mean[2]
+        d0 = rot[0, 0] * p0 + rot[0, 1] * p1 + rot[0, 2] * p2 - (x_def[j, 0] - mean[3])
+        d1 = rot[1, 0] * p0 + rot[1, 1] * p1 + rot[1, 2] * p2 - (x_def[j, 1] - mean[4])
+        d2 = rot[2, 0] * p0 + rot[2, 1] * p1 + rot[2, 2] * p2 - (x_def[j, 2] - mean[5])
         ss += d0 * d0 + d1 * d1 + d2 * d2
-    return 0, angle, math.sqrt(ss / m)
+    return math.sqrt(ss / (hi - lo + 1))
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, parallel=True, error_model="numpy")
 def vertex_rotations(x_ref, x_def, offsets, neighbours):
     """Per-vertex Kabsch rotation of the one-ring from ``x_ref`` (N, 3) to ``x_def`` (N, 3).
 
@@ -179,21 +188,31 @@ def vertex_rotations(x_ref, x_def, offsets, neighbours):
     residual = np.empty(n)
     flags = np.zeros(n, np.uint8)
     for c in prange((n + CHUNK - 1) // CHUNK):
+        first = c * CHUNK
+        m = min(n, first + CHUNK) - first
         h = np.empty((3, 3))
-        a = np.empty((4, 4))
-        v = np.empty((4, 4))
-        for i in range(c * CHUNK, min(n, (c + 1) * CHUNK)):
-            f, ang, res = _vertex_rotation(i, x_ref, x_def, offsets, neighbours, h, a, v,
-                                           rotation[i])
-            flags[i] = f
-            angle[i] = ang
-            residual[i] = res
-            if f:
-                rotation[i, :, :] = np.nan
+        a = np.empty((4, 4, m))
+        v = np.empty((4, 4, m))
+        mean = np.empty((m, 6))
+        for k in range(m):
+            flags[first + k] = _ring_matrix(first + k, x_ref, x_def, offsets, neighbours, h, a, k, mean[k])
+        jacobi_eigh_batch(a, v)
+        for k in range(m):
+            i = first + k
+            if flags[i] == 0:
+                gap, angle[i] = quaternion_rotation(a, v, k, rotation[i])
+                if gap <= GAP_TOL:
+                    flags[i] = AMBIGUOUS
+                else:
+                    residual[i] = _ring_residual(i, x_ref, x_def, offsets, neighbours, mean[k], rotation[i])
+            if flags[i]:
+                rotation[i] = np.nan
+                angle[i] = np.nan
+                residual[i] = np.nan
     return rotation, angle, residual, flags
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def triangle_frame(x, i0, i1, i2, e):
     """Edges e1 = x1 − x0, e2 = x2 − x0 and unit normal n of a triangle into the rows of ``e``
     (3×3). Returns (|e1 × e2|, degenerate) with degenerate = area ≤ TRIANGLE_TOL·(longest edge)²
@@ -214,9 +233,9 @@ def triangle_frame(x, i0, i1, i2, e):
     return dbl_area, degenerate
 
 
-@njit(cache=True)
-def _face_gradient(x_ref, x_def, tri, er, ed, h, a, v, w, f3, r3, u3, stretch, directions):
-    """F3, R3, U3, stretches and directions of one triangle; returns its flags."""
+@njit(cache=True, error_model="numpy")
+def _face_gradient(x_ref, x_def, tri, er, ed, f3):
+    """F3 = [e1' e2' n'] [e1 e2 n]⁻¹ of one triangle into ``f3``; returns the triangle's flags."""
     i0, i1, i2 = tri[0], tri[1], tri[2]
     finite = True
     for j in (i0, i1, i2):
@@ -241,55 +260,65 @@ def _face_gradient(x_ref, x_def, tri, er, ed, h, a, v, w, f3, r3, u3, stretch, d
         f3[r, 0] = ed[0, r] * g00 + ed[1, r] * g10 + ed[2, r] * n0
         f3[r, 1] = ed[0, r] * g01 + ed[1, r] * g11 + ed[2, r] * n1
         f3[r, 2] = ed[0, r] * g02 + ed[1, r] * g12 + ed[2, r] * n2
-    for r in range(3):
-        for c in range(3):
-            h[r, c] = f3[c, r]
-    horn_rotation(h, a, v, r3)  # det F3 = area'/area > 0, so this is the polar rotation
-    for r in range(3):
-        for c in range(3):
-            u3[r, c] = r3[0, r] * f3[0, c] + r3[1, r] * f3[1, c] + r3[2, r] * f3[2, c]
-    for r in range(3):
-        for c in range(r):
-            u3[r, c] = u3[c, r] = 0.5 * (u3[r, c] + u3[c, r])
-    for r in range(3):
-        for c in range(3):
-            h[r, c] = u3[r, c]
-    jacobi_eigh(h, w)
-    sort_descending(h, w, stretch, directions)
     return 0
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, parallel=True, error_model="numpy")
 def face_gradients3(x_ref, x_def, faces):
     """Per-triangle 3×3 deformation gradient that also maps the reference unit normal n to the
     deformed n': F3 = [e1' e2' n'] [e1 e2 n]⁻¹, with F3 = R3·U3 (R3 proper, U3 symmetric
     positive definite, both in the reference configuration).
 
+    R3 is Horn's rotation for H = F3ᵀ (the polar rotation, since det F3 = area'/area > 0), and
+    U3 = R3ᵀF3 (symmetrised); stretches and directions are its Jacobi eigen-pairs.
     Returns ``F3``, ``R3``, ``U3`` (M, 3, 3), ``stretch3`` (M, 3) the eigenvalues of U3 in
     descending order, ``directions3`` (M, 3, 3) the unit eigenvectors (row k belongs to
     stretch3[k], sign free) and ``flags`` (M,) uint8 (REF_DEGENERATE, DEF_DEGENERATE,
     NONFINITE; TRIANGLE_TOL). Since F3ᵀ n' = n, one stretch is exactly 1 with direction n; the
     other two are the in-plane (2D) principal stretches.
     """
-    m = faces.shape[0]
-    f3 = np.empty((m, 3, 3))
-    r3 = np.empty((m, 3, 3))
-    u3 = np.empty((m, 3, 3))
-    stretch = np.empty((m, 3))
-    directions = np.empty((m, 3, 3))
-    flags = np.zeros(m, np.uint8)
-    for c in prange((m + CHUNK - 1) // CHUNK):
+    n = faces.shape[0]
+    f3 = np.empty((n, 3, 3))
+    r3 = np.empty((n, 3, 3))
+    u3 = np.empty((n, 3, 3))
+    stretch = np.empty((n, 3))
+    directions = np.empty((n, 3, 3))
+    flags = np.zeros(n, np.uint8)
+    for c in prange((n + CHUNK - 1) // CHUNK):
+        first = c * CHUNK
+        m = min(n, first + CHUNK) - first
         er = np.empty((3, 3))
         ed = np.empty((3, 3))
         h = np.empty((3, 3))
-        a = np.empty((4, 4))
-        v = np.empty((4, 4))
-        w = np.empty((3, 3))
-        for t in range(c * CHUNK, min(m, (c + 1) * CHUNK)):
-            f = _face_gradient(x_ref, x_def, faces[t], er, ed, h, a, v, w,
-                               f3[t], r3[t], u3[t], stretch[t], directions[t])
-            flags[t] = f
-            if f:
+        a4 = np.zeros((4, 4, m))
+        v4 = np.empty((4, 4, m))
+        a3 = np.zeros((3, 3, m))
+        v3 = np.empty((3, 3, m))
+        for k in range(m):
+            t = first + k
+            flags[t] = _face_gradient(x_ref, x_def, faces[t], er, ed, f3[t])
+            if flags[t] == 0:
+                h[:, :] = f3[t].T
+                horn_matrix(h, math.sqrt(np.sum(h * h)), a4, k)
+        jacobi_eigh_batch(a4, v4)
+        for k in range(m):
+            t = first + k
+            if flags[t] == 0:
+                quaternion_rotation(a4, v4, k, r3[t])
+                u = u3[t]
+                for i in range(3):
+                    for j in range(3):
+                        u[i, j] = r3[t, 0, i] * f3[t, 0, j] + r3[t, 1, i] * f3[t, 1, j] + r3[t, 2, i] * f3[t, 2, j]
+                for i in range(3):
+                    for j in range(i):
+                        u[i, j] = u[j, i] = 0.5 * (u[i, j] + u[j, i])
+                a3[:, :, k] = u
+        jacobi_eigh_batch(a3, v3)
+        for k in range(m):
+            t = first + k
+            if flags[t] == 0:
+                sort_descending(a3, v3, k, stretch[t], directions[t])
+            else:
                 f3[t] = np.nan
                 r3[t] = np.nan
                 u3[t] = np.nan
