@@ -159,7 +159,7 @@ def principal_2x2(u00, u01, u11, absdet):
     half = 0.5 * (u00 - u11)
     d = np.hypot(half, u01)
     lam1 = 0.5 * (u00 + u11) + d
-    lam2 = absdet / lam1 if lam1 > 0.0 else 0.0
+    lam2 = min(absdet / lam1, lam1) if lam1 > 0.0 else 0.0  # min: rounding when λ1 ≈ λ2
     if d == 0.0:
         return lam1, lam2, 1.0, 0.0
     if half >= 0.0:
