@@ -4,8 +4,10 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
+from conftest import grid
 from scipy.spatial.transform import Rotation
 
+from clothtool.analysis.deformation2d import DEGENERATE_TOL, analyze_pair
 from clothtool.analysis.dihedral import dihedral_change
 from clothtool.analysis.kabsch import (
     AMBIGUOUS,
@@ -19,15 +21,6 @@ from clothtool.analysis.symeig import jacobi_eigh_batch, sort_descending
 from clothtool.analysis.topology import interior_edges, one_ring
 
 HYP = settings(deadline=None, max_examples=60, suppress_health_check=[HealthCheck.too_slow])
-
-
-def grid(nx, ny, width=1.0, height=1.0):
-    """Flat nx × ny vertex grid in the xy plane (vertex j·nx + i), two triangles per cell."""
-    X, Y = np.meshgrid(np.linspace(0, width, nx), np.linspace(0, height, ny))
-    x = np.stack([X.ravel(), Y.ravel(), np.zeros(nx * ny)], axis=1)
-    a = (np.arange(ny - 1)[:, None] * nx + np.arange(nx - 1)[None, :]).ravel()
-    faces = np.concatenate([np.stack([a, a + 1, a + nx + 1], 1), np.stack([a, a + nx + 1, a + nx], 1)])
-    return x, faces
 
 
 def curved_patch(nx=7, ny=6):
@@ -343,6 +336,23 @@ def test_face_degenerate_triangles_are_flagged(tri, bit):
     assert flags[0] == 0
 
 
+def test_face_F3_agrees_with_the_2D_analysis(rng):
+    """In-plane stretches of F3 = the 2D kernel's λ1, λ2; flags = its bits 0–2, NaN alike."""
+    x, faces = curved_patch(8, 7)
+    y = x @ (np.eye(3) + 0.3 * rng.normal(size=(3, 3))).T + 0.02 * rng.normal(size=x.shape)
+    y[5] = y[4] + 1e-12 * (y[6] - y[4])  # squashes the triangles around vertex 5 into needles
+    x[20] = x[21]  # reference triangles with two corners in one place
+    y[30, 1] = np.inf
+    F3, R3, U3, stretch3, directions3, flags = face_gradients3(x, y, faces)
+    two_d = analyze_pair(x, y, faces, fields=("stretch", "flags"))
+    np.testing.assert_array_equal(flags, two_d["flags"] & 7)
+    assert {1, 2, 4} <= set(flags)
+    ok = flags == 0
+    assert np.isnan(F3[~ok]).all() and np.isnan(stretch3[~ok]).all() and not np.isnan(F3[ok]).any()
+    np.testing.assert_allclose(in_plane_stretches(x, faces[ok], stretch3[ok], directions3[ok]),
+                               two_d["stretch"][ok], rtol=1e-11)
+
+
 # ---------------------------------------------------------------- dihedral change
 
 
@@ -351,7 +361,7 @@ def test_face_degenerate_triangles_are_flagged(tri, bit):
 def test_dihedral_change_is_zero_for_rigid_motions(R, b):
     x, faces = curved_patch()
     edges, opposite = interior_edges(faces, len(x))
-    change, flags = dihedral_change(x, x @ R.T + b, edges, opposite)
+    change, flags = dihedral_change(x, x @ R.T + b, edges, opposite, DEGENERATE_TOL)
     assert not flags.any()
     np.testing.assert_allclose(change, 0.0, atol=1e-12)
 
@@ -366,13 +376,13 @@ def test_dihedral_change_equals_the_fold_angle(fold):
     y = x.copy()
     y[right] = x[right] @ Rotation.from_rotvec([0, fold, 0]).as_matrix().T
     edges, opposite = interior_edges(faces, len(x))
-    change, flags = dihedral_change(x, y, edges, opposite)
+    change, flags = dihedral_change(x, y, edges, opposite, DEGENERATE_TOL)
     assert not flags.any()
     on_fold = np.all(np.abs(x[edges, 0]) < 1e-9, axis=1)
     assert on_fold.sum() == 3
     np.testing.assert_allclose(change[on_fold], fold, atol=1e-12)
     np.testing.assert_allclose(change[~on_fold], 0.0, atol=1e-12)
-    back, _ = dihedral_change(y, x, edges, opposite)
+    back, _ = dihedral_change(y, x, edges, opposite, DEGENERATE_TOL)
     np.testing.assert_allclose(back[on_fold], -fold, atol=1e-12)
 
 
@@ -381,8 +391,8 @@ def test_dihedral_change_flags_degenerate_neighbours():
     edges, opposite = np.array([[0, 1]]), np.array([[2, 3]])
     y = x.copy()
     y[3] = [0.5, 0, 0]  # the second triangle collapses onto the edge
-    change, flags = dihedral_change(x, y, edges, opposite)
+    change, flags = dihedral_change(x, y, edges, opposite, DEGENERATE_TOL)
     assert flags[0] == DEF_DEGENERATE and np.isnan(change[0])
     y[3] = [0.5, np.nan, 0]
-    change, flags = dihedral_change(x, y, edges, opposite)
+    change, flags = dihedral_change(x, y, edges, opposite, DEGENERATE_TOL)
     assert flags[0] == NONFINITE and np.isnan(change[0])

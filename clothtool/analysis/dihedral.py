@@ -17,11 +17,11 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from clothtool.analysis.kabsch import DEF_DEGENERATE, NONFINITE, REF_DEGENERATE, TRIANGLE_TOL
+from clothtool.analysis.kabsch import DEF_DEGENERATE, NONFINITE, REF_DEGENERATE
 
 
 @njit(cache=True, error_model="numpy")
-def _bend(x, i, j, k0, k1):
+def _bend(x, i, j, k0, k1, tol):
     """Signed bending angle θ of edge (i, j) and whether either triangle is degenerate."""
     e0, e1, e2 = x[j, 0] - x[i, 0], x[j, 1] - x[i, 1], x[j, 2] - x[i, 2]
     a0, a1, a2 = x[k0, 0] - x[i, 0], x[k0, 1] - x[i, 1], x[k0, 2] - x[i, 2]
@@ -33,9 +33,9 @@ def _bend(x, i, j, k0, k1):
     bb = b0 * b0 + b1 * b1 + b2 * b2
     ab = (a0 - e0) ** 2 + (a1 - e1) ** 2 + (a2 - e2) ** 2  # ‖xk0 − xj‖²
     ba = (b0 + e0) ** 2 + (b1 + e1) ** 2 + (b2 + e2) ** 2  # ‖xk1 − xi‖²
-    area0 = 0.5 * math.sqrt(n00 * n00 + n01 * n01 + n02 * n02)
-    area1 = 0.5 * math.sqrt(n10 * n10 + n11 * n11 + n12 * n12)
-    degenerate = not (area0 > TRIANGLE_TOL * max(ee, aa, ab) and area1 > TRIANGLE_TOL * max(ee, bb, ba))
+    dbl_area0 = math.sqrt(n00 * n00 + n01 * n01 + n02 * n02)
+    dbl_area1 = math.sqrt(n10 * n10 + n11 * n11 + n12 * n12)
+    degenerate = dbl_area0 <= tol * max(ee, aa, ab) or dbl_area1 <= tol * max(ee, bb, ba)
     c0 = n01 * n12 - n02 * n11
     c1 = n02 * n10 - n00 * n12
     c2 = n00 * n11 - n01 * n10
@@ -44,11 +44,12 @@ def _bend(x, i, j, k0, k1):
 
 
 @njit(cache=True, parallel=True, error_model="numpy")
-def dihedral_change(x_ref, x_def, edges, opposite):
+def dihedral_change(x_ref, x_def, edges, opposite, tol):
     """Signed dihedral-angle change θ_def − θ_ref (radians, wrapped to (−π, π]) per edge.
 
     Returns ``change`` (E,) and ``flags`` (E,) uint8: REF_DEGENERATE / DEF_DEGENERATE when either
-    triangle of the edge is degenerate (TRIANGLE_TOL), NONFINITE; flagged changes are NaN.
+    triangle of the edge is degenerate (‖e1 × e2‖ ≤ tol·(longest edge)², as in the 2D analysis),
+    NONFINITE; flagged changes are NaN.
     """
     n = edges.shape[0]
     change = np.empty(n)
@@ -63,8 +64,8 @@ def dihedral_change(x_ref, x_def, edges, opposite):
             flags[t] = NONFINITE
             change[t] = np.nan
             continue
-        theta_ref, ref_bad = _bend(x_ref, i, j, k0, k1)
-        theta_def, def_bad = _bend(x_def, i, j, k0, k1)
+        theta_ref, ref_bad = _bend(x_ref, i, j, k0, k1, tol)
+        theta_def, def_bad = _bend(x_def, i, j, k0, k1, tol)
         f = (REF_DEGENERATE if ref_bad else 0) | (DEF_DEGENERATE if def_bad else 0)
         flags[t] = f
         if f:

@@ -23,6 +23,7 @@ import math
 import numpy as np
 from numba import njit, prange
 
+from clothtool.analysis.deformation2d import DEGENERATE_TOL
 from clothtool.analysis.symeig import jacobi_eigh_batch, sort_descending
 
 REF_DEGENERATE = 1  # flag bit 0: reference ring / triangle degenerate
@@ -38,8 +39,6 @@ GAP_TOL = 1e-8
 """The rotation is ambiguous when the eigen-gap 2(σ2 + dσ3) of Horn's matrix is at most
 GAP_TOL·√(Σ‖p‖² Σ‖q‖²). For a rigid motion the relative gap is ≈ (width / length)² of the ring,
 so GAP_TOL = RING_TOL²; the eigenvector error is ≈ ε/(relative gap), at most ~2e-8 at the limit."""
-TRIANGLE_TOL = 1e-10
-"""A triangle is degenerate when its area ≤ TRIANGLE_TOL × (its longest edge)²."""
 
 CHUNK = 64  # vertices / faces per batch: one parallel work item, solved in lockstep by Jacobi
 
@@ -174,49 +173,64 @@ def _ring_residual(i, x_ref, x_def, offsets, neighbours, mean, rot):
 
 
 @njit(cache=True, parallel=True, error_model="numpy")
-def vertex_rotations(x_ref, x_def, offsets, neighbours):
+def vertex_fields(x_ref, x_def, offsets, neighbours, rotation, angle, residual, flags):
     """Per-vertex Kabsch rotation of the one-ring from ``x_ref`` (N, 3) to ``x_def`` (N, 3).
 
-    Returns ``rotation`` (N, 3, 3), ``angle`` (N,) in radians [0, π], ``residual`` (N,)
+    Fills ``rotation`` (N, 3, 3), ``angle`` (N,) in radians [0, π], ``residual`` (N,)
     = √(mean over the ring of ‖R p − q‖²) and ``flags`` (N,) uint8: REF_DEGENERATE /
     DEF_DEGENERATE (coincident or collinear ring, RING_TOL), NONFINITE, AMBIGUOUS (GAP_TOL).
-    Where a flag is set, rotation, angle and residual are NaN.
+    Where a flag is set, rotation, angle and residual are NaN. Each output is full size or
+    empty (then it is not written); they may be float32, the arithmetic is float64.
     """
     n = offsets.shape[0] - 1
-    rotation = np.empty((n, 3, 3))
-    angle = np.empty(n)
-    residual = np.empty(n)
-    flags = np.zeros(n, np.uint8)
     for c in prange((n + CHUNK - 1) // CHUNK):
         first = c * CHUNK
         m = min(n, first + CHUNK) - first
         h = np.empty((3, 3))
+        rot = np.empty((3, 3))
         a = np.empty((4, 4, m))
         v = np.empty((4, 4, m))
         mean = np.empty((m, 6))
+        flag = np.empty(m, np.uint8)
         for k in range(m):
-            flags[first + k] = _ring_matrix(first + k, x_ref, x_def, offsets, neighbours, h, a, k, mean[k])
+            flag[k] = _ring_matrix(first + k, x_ref, x_def, offsets, neighbours, h, a, k, mean[k])
         jacobi_eigh_batch(a, v)
         for k in range(m):
             i = first + k
-            if flags[i] == 0:
-                gap, angle[i] = quaternion_rotation(a, v, k, rotation[i])
+            ang = res = np.nan
+            rot[:, :] = np.nan
+            if flag[k] == 0:
+                gap, ang = quaternion_rotation(a, v, k, rot)
                 if gap <= GAP_TOL:
-                    flags[i] = AMBIGUOUS
-                else:
-                    residual[i] = _ring_residual(i, x_ref, x_def, offsets, neighbours, mean[k], rotation[i])
-            if flags[i]:
-                rotation[i] = np.nan
-                angle[i] = np.nan
-                residual[i] = np.nan
-    return rotation, angle, residual, flags
+                    flag[k] = AMBIGUOUS
+                    ang = np.nan
+                    rot[:, :] = np.nan
+                elif residual.shape[0]:
+                    res = _ring_residual(i, x_ref, x_def, offsets, neighbours, mean[k], rot)
+            if rotation.shape[0]:
+                rotation[i] = rot
+            if angle.shape[0]:
+                angle[i] = ang
+            if residual.shape[0]:
+                residual[i] = res
+            if flags.shape[0]:
+                flags[i] = flag[k]
+
+
+def vertex_rotations(x_ref, x_def, offsets, neighbours):
+    """:func:`vertex_fields` into new float64 arrays: (rotation, angle, residual, flags)."""
+    n = len(offsets) - 1
+    out = (np.empty((n, 3, 3)), np.empty(n), np.empty(n), np.empty(n, np.uint8))
+    vertex_fields(np.ascontiguousarray(x_ref, np.float64), np.ascontiguousarray(x_def, np.float64),
+                  offsets, neighbours, *out)
+    return out
 
 
 @njit(cache=True, error_model="numpy")
-def triangle_frame(x, i0, i1, i2, e):
+def triangle_frame(x, i0, i1, i2, tol, e):
     """Edges e1 = x1 − x0, e2 = x2 − x0 and unit normal n of a triangle into the rows of ``e``
-    (3×3). Returns (|e1 × e2|, degenerate) with degenerate = area ≤ TRIANGLE_TOL·(longest edge)²
-    or non-finite."""
+    (3×3). Returns (‖e1 × e2‖, flag): flag is NONFINITE, else 1 when degenerate
+    (‖e1 × e2‖ ≤ tol·(longest edge)², the criterion of the 2D analysis), else 0."""
     for k in range(3):
         e[0, k] = x[i1, k] - x[i0, k]
         e[1, k] = x[i2, k] - x[i0, k]
@@ -227,28 +241,24 @@ def triangle_frame(x, i0, i1, i2, e):
     l1 = e[0, 0] ** 2 + e[0, 1] ** 2 + e[0, 2] ** 2
     l2 = e[1, 0] ** 2 + e[1, 1] ** 2 + e[1, 2] ** 2
     l3 = (e[1, 0] - e[0, 0]) ** 2 + (e[1, 1] - e[0, 1]) ** 2 + (e[1, 2] - e[0, 2]) ** 2
-    degenerate = not (0.5 * dbl_area > TRIANGLE_TOL * max(l1, l2, l3))  # NaN → degenerate
-    if not degenerate:
-        e[2, 0], e[2, 1], e[2, 2] = c0 / dbl_area, c1 / dbl_area, c2 / dbl_area
-    return dbl_area, degenerate
+    if not np.isfinite(dbl_area + l1 + l2 + l3):
+        return dbl_area, NONFINITE
+    if dbl_area <= tol * max(l1, l2, l3):
+        return dbl_area, 1
+    e[2, 0], e[2, 1], e[2, 2] = c0 / dbl_area, c1 / dbl_area, c2 / dbl_area
+    return dbl_area, 0
 
 
 @njit(cache=True, error_model="numpy")
-def _face_gradient(x_ref, x_def, tri, er, ed, f3):
+def _face_gradient(x_ref, x_def, tri, tol, er, ed, f3):
     """F3 = [e1' e2' n'] [e1 e2 n]⁻¹ of one triangle into ``f3``; returns the triangle's flags."""
-    i0, i1, i2 = tri[0], tri[1], tri[2]
-    finite = True
-    for j in (i0, i1, i2):
-        for k in range(3):
-            finite = finite and np.isfinite(x_ref[j, k]) and np.isfinite(x_def[j, k])
-    if not finite:
-        return NONFINITE
-    d, ref_bad = triangle_frame(x_ref, i0, i1, i2, er)
-    _, def_bad = triangle_frame(x_def, i0, i1, i2, ed)
-    flags = (REF_DEGENERATE if ref_bad else 0) | (DEF_DEGENERATE if def_bad else 0)
+    d, ref_flag = triangle_frame(x_ref, tri[0], tri[1], tri[2], tol, er)
+    _, def_flag = triangle_frame(x_def, tri[0], tri[1], tri[2], tol, ed)
+    flags = (ref_flag & NONFINITE) | (def_flag & NONFINITE)
+    flags |= (REF_DEGENERATE if ref_flag == 1 else 0) | (DEF_DEGENERATE if def_flag == 1 else 0)
     if flags:
         return flags
-    # [e1 e2 n]⁻¹ has the rows (e2 × n)/d, (n × e1)/d, n with d = |e1 × e2| = det [e1 e2 n]
+    # [e1 e2 n]⁻¹ has the rows (e2 × n)/d, (n × e1)/d, n with d = ‖e1 × e2‖ = det [e1 e2 n]
     n0, n1, n2 = er[2, 0], er[2, 1], er[2, 2]
     g00 = (er[1, 1] * n2 - er[1, 2] * n1) / d
     g01 = (er[1, 2] * n0 - er[1, 0] * n2) / d
@@ -264,64 +274,95 @@ def _face_gradient(x_ref, x_def, tri, er, ed, f3):
 
 
 @njit(cache=True, parallel=True, error_model="numpy")
-def face_gradients3(x_ref, x_def, faces):
+def face_fields3(x_ref, x_def, faces, tol, F3, R3, U3, stretch3, directions3, flags):
     """Per-triangle 3×3 deformation gradient that also maps the reference unit normal n to the
     deformed n': F3 = [e1' e2' n'] [e1 e2 n]⁻¹, with F3 = R3·U3 (R3 proper, U3 symmetric
     positive definite, both in the reference configuration).
 
     R3 is Horn's rotation for H = F3ᵀ (the polar rotation, since det F3 = area'/area > 0), and
     U3 = R3ᵀF3 (symmetrised); stretches and directions are its Jacobi eigen-pairs.
-    Returns ``F3``, ``R3``, ``U3`` (M, 3, 3), ``stretch3`` (M, 3) the eigenvalues of U3 in
+    Fills ``F3``, ``R3``, ``U3`` (M, 3, 3), ``stretch3`` (M, 3) the eigenvalues of U3 in
     descending order, ``directions3`` (M, 3, 3) the unit eigenvectors (row k belongs to
-    stretch3[k], sign free) and ``flags`` (M,) uint8 (REF_DEGENERATE, DEF_DEGENERATE,
-    NONFINITE; TRIANGLE_TOL). Since F3ᵀ n' = n, one stretch is exactly 1 with direction n; the
-    other two are the in-plane (2D) principal stretches.
+    stretch3[k], sign free) and ``flags`` (M,) uint8: REF_DEGENERATE, DEF_DEGENERATE, NONFINITE
+    with the 2D analysis' criterion and ``tol``; flagged triangles are NaN. Each output is full
+    size or empty (then it is neither computed nor written). Since F3ᵀ n' = n, one stretch is
+    exactly 1 with direction n; the other two are the in-plane (2D) principal stretches.
     """
     n = faces.shape[0]
-    f3 = np.empty((n, 3, 3))
-    r3 = np.empty((n, 3, 3))
-    u3 = np.empty((n, 3, 3))
-    stretch = np.empty((n, 3))
-    directions = np.empty((n, 3, 3))
-    flags = np.zeros(n, np.uint8)
+    polar = R3.shape[0] or U3.shape[0] or stretch3.shape[0] or directions3.shape[0]
+    principal = stretch3.shape[0] or directions3.shape[0]
     for c in prange((n + CHUNK - 1) // CHUNK):
         first = c * CHUNK
         m = min(n, first + CHUNK) - first
         er = np.empty((3, 3))
         ed = np.empty((3, 3))
         h = np.empty((3, 3))
+        f = np.empty((m, 3, 3))
+        r = np.empty((3, 3))
+        u = np.empty((3, 3))
+        values = np.empty(3)
+        vectors = np.empty((3, 3))
         a4 = np.zeros((4, 4, m))
         v4 = np.empty((4, 4, m))
         a3 = np.zeros((3, 3, m))
         v3 = np.empty((3, 3, m))
+        flag = np.empty(m, np.uint8)
         for k in range(m):
-            t = first + k
-            flags[t] = _face_gradient(x_ref, x_def, faces[t], er, ed, f3[t])
-            if flags[t] == 0:
-                h[:, :] = f3[t].T
-                horn_matrix(h, math.sqrt(np.sum(h * h)), a4, k)
-        jacobi_eigh_batch(a4, v4)
-        for k in range(m):
-            t = first + k
-            if flags[t] == 0:
-                quaternion_rotation(a4, v4, k, r3[t])
-                u = u3[t]
+            flag[k] = _face_gradient(x_ref, x_def, faces[first + k], tol, er, ed, f[k])
+            if flag[k]:
+                f[k] = np.nan
+            elif polar:
+                h[:, :] = f[k].T
+                norm = 0.0
                 for i in range(3):
                     for j in range(3):
-                        u[i, j] = r3[t, 0, i] * f3[t, 0, j] + r3[t, 1, i] * f3[t, 1, j] + r3[t, 2, i] * f3[t, 2, j]
+                        norm += h[i, j] * h[i, j]
+                horn_matrix(h, math.sqrt(norm), a4, k)
+        if polar:
+            jacobi_eigh_batch(a4, v4)
+        for k in range(m):
+            t = first + k
+            if flags.shape[0]:
+                flags[t] = flag[k]
+            if F3.shape[0]:
+                F3[t] = f[k]
+            if not polar:
+                continue
+            r[:, :] = np.nan
+            u[:, :] = np.nan
+            if flag[k] == 0:
+                quaternion_rotation(a4, v4, k, r)
+                for i in range(3):
+                    for j in range(3):
+                        u[i, j] = r[0, i] * f[k, 0, j] + r[1, i] * f[k, 1, j] + r[2, i] * f[k, 2, j]
                 for i in range(3):
                     for j in range(i):
                         u[i, j] = u[j, i] = 0.5 * (u[i, j] + u[j, i])
                 a3[:, :, k] = u
+            if R3.shape[0]:
+                R3[t] = r
+            if U3.shape[0]:
+                U3[t] = u
+        if not principal:
+            continue
         jacobi_eigh_batch(a3, v3)
         for k in range(m):
             t = first + k
-            if flags[t] == 0:
-                sort_descending(a3, v3, k, stretch[t], directions[t])
-            else:
-                f3[t] = np.nan
-                r3[t] = np.nan
-                u3[t] = np.nan
-                stretch[t] = np.nan
-                directions[t] = np.nan
-    return f3, r3, u3, stretch, directions, flags
+            values[:] = np.nan
+            vectors[:, :] = np.nan
+            if flag[k] == 0:
+                sort_descending(a3, v3, k, values, vectors)
+            if stretch3.shape[0]:
+                stretch3[t] = values
+            if directions3.shape[0]:
+                directions3[t] = vectors
+
+
+def face_gradients3(x_ref, x_def, faces, tol=DEGENERATE_TOL):
+    """:func:`face_fields3` into new float64 arrays: (F3, R3, U3, stretch3, directions3, flags)."""
+    m = len(faces)
+    out = (np.empty((m, 3, 3)), np.empty((m, 3, 3)), np.empty((m, 3, 3)), np.empty((m, 3)),
+           np.empty((m, 3, 3)), np.empty(m, np.uint8))
+    face_fields3(np.ascontiguousarray(x_ref, np.float64), np.ascontiguousarray(x_def, np.float64),
+                 np.ascontiguousarray(faces, np.int64), tol, *out)
+    return out
