@@ -70,10 +70,15 @@ Examples:
   clothtool analyze sim/ -o out.h5 --reference uv --uv-scale 0.5
       rest shape from the s,t / u,v texture coordinates (Baraff-Witkin)
   clothtool analyze frames/ -o out.h5 --reference rest.ply --dtype float64
+  clothtool analyze frames/ -o out.h5 --kabsch --fields stretch,angle,residual,dihedral_change
+      with the 3D variant: per-vertex ring rotation, residual and bending
 
 \b
 Fields (--fields, comma separated; default all):
   F C U R strain stretch directions area_ratio flags
+  with --kabsch also: rotation angle residual (per vertex, /vertex/...),
+  F3 R3 U3 stretch3 directions3 (per face), dihedral_change (per edge, /edge/...);
+  flags then also selects /vertex/flags and /edge/flags
 Read the result with h5py:  h5py.File('out.h5')['face/stretch'][k]  (pair k)
 
 """ + EXIT_CODES_HELP
@@ -89,13 +94,16 @@ Read the result with h5py:  h5py.File('out.h5')['face/stretch'][k]  (pair k)
 @click.option("--uv-scale", default=1.0, show_default=True, type=float,
               help="Metres per uv unit for --reference uv.")
 @click.option("--fields", default="all", show_default=True, metavar="NAMES",
-              help="Comma-separated face fields to compute and store.")
+              help="Comma-separated fields to compute and store (list below).")
 @click.option("--dtype", type=click.Choice(["float32", "float64"]), default="float32",
               show_default=True, help="Storage type of float fields (computation is float64).")
 @click.option("--compression", default="none", show_default=True, metavar="none|gzip[=LEVEL]",
               help="HDF5 compression of the field datasets (gzip is readable by MATLAB and ParaView).")
+@click.option("--kabsch", is_flag=True,
+              help="Add the 3D variant: Kabsch rotation of each vertex's one-ring, the 3×3 face "
+                   "gradient with its polar split, the dihedral-angle change per edge.")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary.")
-def analyze(inputs, output, reference, uv_scale, fields, dtype, compression, quiet):
+def analyze(inputs, output, reference, uv_scale, fields, dtype, compression, kabsch, quiet):
     """Per-triangle deformation of a PLY sequence, written to HDF5.
 
     FRAMES is a folder of .ply files, a glob, or a list of files; they are
@@ -108,7 +116,7 @@ def analyze(inputs, output, reference, uv_scale, fields, dtype, compression, qui
 
     summary = analyze_sequence(
         list(inputs), output, reference=reference, uv_scale=uv_scale,
-        fields=fields, dtype=dtype, compression=compression,
+        fields=fields, dtype=dtype, compression=compression, kabsch=kabsch,
         progress=_progress_enabled(quiet), command=" ".join(["clothtool", *sys.argv[1:]]),
     )
     if not quiet:

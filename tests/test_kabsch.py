@@ -361,7 +361,7 @@ def test_face_F3_agrees_with_the_2D_analysis(rng):
 def test_dihedral_change_is_zero_for_rigid_motions(R, b):
     x, faces = curved_patch()
     edges, opposite = interior_edges(faces, len(x))
-    change, flags = dihedral_change(x, x @ R.T + b, edges, opposite, DEGENERATE_TOL)
+    change, flags = dihedral_change(x, x @ R.T + b, edges, opposite)
     assert not flags.any()
     np.testing.assert_allclose(change, 0.0, atol=1e-12)
 
@@ -376,13 +376,13 @@ def test_dihedral_change_equals_the_fold_angle(fold):
     y = x.copy()
     y[right] = x[right] @ Rotation.from_rotvec([0, fold, 0]).as_matrix().T
     edges, opposite = interior_edges(faces, len(x))
-    change, flags = dihedral_change(x, y, edges, opposite, DEGENERATE_TOL)
+    change, flags = dihedral_change(x, y, edges, opposite)
     assert not flags.any()
     on_fold = np.all(np.abs(x[edges, 0]) < 1e-9, axis=1)
     assert on_fold.sum() == 3
     np.testing.assert_allclose(change[on_fold], fold, atol=1e-12)
     np.testing.assert_allclose(change[~on_fold], 0.0, atol=1e-12)
-    back, _ = dihedral_change(y, x, edges, opposite, DEGENERATE_TOL)
+    back, _ = dihedral_change(y, x, edges, opposite)
     np.testing.assert_allclose(back[on_fold], -fold, atol=1e-12)
 
 
@@ -391,8 +391,8 @@ def test_dihedral_change_flags_degenerate_neighbours():
     edges, opposite = np.array([[0, 1]]), np.array([[2, 3]])
     y = x.copy()
     y[3] = [0.5, 0, 0]  # the second triangle collapses onto the edge
-    change, flags = dihedral_change(x, y, edges, opposite, DEGENERATE_TOL)
+    change, flags = dihedral_change(x, y, edges, opposite)
     assert flags[0] == DEF_DEGENERATE and np.isnan(change[0])
     y[3] = [0.5, np.nan, 0]
-    change, flags = dihedral_change(x, y, edges, opposite, DEGENERATE_TOL)
+    change, flags = dihedral_change(x, y, edges, opposite)
     assert flags[0] == NONFINITE and np.isnan(change[0])

@@ -17,6 +17,7 @@ import math
 import numpy as np
 from numba import njit, prange
 
+from clothtool.analysis.deformation2d import DEGENERATE_TOL
 from clothtool.analysis.kabsch import DEF_DEGENERATE, NONFINITE, REF_DEGENERATE
 
 
@@ -44,37 +45,39 @@ def _bend(x, i, j, k0, k1, tol):
 
 
 @njit(cache=True, parallel=True, error_model="numpy")
-def dihedral_change(x_ref, x_def, edges, opposite, tol):
-    """Signed dihedral-angle change θ_def − θ_ref (radians, wrapped to (−π, π]) per edge.
-
-    Returns ``change`` (E,) and ``flags`` (E,) uint8: REF_DEGENERATE / DEF_DEGENERATE when either
+def dihedral_fields(x_ref, x_def, edges, opposite, tol, change, flags):
+    """Fill the signed dihedral-angle change θ_def − θ_ref (radians, wrapped to (−π, π]) per edge
+    into ``change`` (E,) and ``flags`` (E,) uint8: REF_DEGENERATE / DEF_DEGENERATE when either
     triangle of the edge is degenerate (‖e1 × e2‖ ≤ tol·(longest edge)², as in the 2D analysis),
-    NONFINITE; flagged changes are NaN.
+    NONFINITE; flagged changes are NaN. Each output is full size or empty (then not written).
     """
-    n = edges.shape[0]
-    change = np.empty(n)
-    flags = np.zeros(n, np.uint8)
-    for t in prange(n):
+    for t in prange(edges.shape[0]):
         i, j, k0, k1 = edges[t, 0], edges[t, 1], opposite[t, 0], opposite[t, 1]
         finite = True
         for v in (i, j, k0, k1):
             for k in range(3):
                 finite = finite and np.isfinite(x_ref[v, k]) and np.isfinite(x_def[v, k])
-        if not finite:
-            flags[t] = NONFINITE
-            change[t] = np.nan
-            continue
-        theta_ref, ref_bad = _bend(x_ref, i, j, k0, k1, tol)
-        theta_def, def_bad = _bend(x_def, i, j, k0, k1, tol)
-        f = (REF_DEGENERATE if ref_bad else 0) | (DEF_DEGENERATE if def_bad else 0)
-        flags[t] = f
-        if f:
-            change[t] = np.nan
-            continue
-        d = theta_def - theta_ref
-        if d > math.pi:
-            d -= 2.0 * math.pi
-        elif d <= -math.pi:
-            d += 2.0 * math.pi
-        change[t] = d
-    return change, flags
+        d = np.nan
+        f = NONFINITE
+        if finite:
+            theta_ref, ref_bad = _bend(x_ref, i, j, k0, k1, tol)
+            theta_def, def_bad = _bend(x_def, i, j, k0, k1, tol)
+            f = (REF_DEGENERATE if ref_bad else 0) | (DEF_DEGENERATE if def_bad else 0)
+            if f == 0:
+                d = theta_def - theta_ref
+                if d > math.pi:
+                    d -= 2.0 * math.pi
+                elif d <= -math.pi:
+                    d += 2.0 * math.pi
+        if change.shape[0]:
+            change[t] = d
+        if flags.shape[0]:
+            flags[t] = f
+
+
+def dihedral_change(x_ref, x_def, edges, opposite, tol=DEGENERATE_TOL):
+    """:func:`dihedral_fields` into new arrays: (change float64 (E,), flags uint8 (E,))."""
+    out = (np.empty(len(edges)), np.empty(len(edges), np.uint8))
+    dihedral_fields(np.ascontiguousarray(x_ref, np.float64), np.ascontiguousarray(x_def, np.float64),
+                    edges, opposite, tol, *out)
+    return out

@@ -27,17 +27,23 @@ FIELD_SHAPES = {"F": (2, 2), "C": (2, 2), "U": (2, 2), "R": (2, 2), "strain": (2
                 "stretch": (2,), "directions": (2, 3), "area_ratio": (), "flags": ()}
 
 
-def parse_fields(fields):
-    """'all', a comma-separated string or an iterable of names → tuple in canonical order."""
+def parse_fields(fields, kabsch=False):
+    """'all', a comma-separated string or an iterable of names → tuple in canonical order.
+    With ``kabsch`` the names of the 3D variant are allowed too (and 'all' includes them)."""
+    from clothtool.analysis.variant3d import KABSCH_FIELDS
+
+    known = FIELDS + KABSCH_FIELDS if kabsch else FIELDS
     if fields is None or fields == "all":
-        return FIELDS
+        return known
     names = [f.strip() for f in fields.split(",")] if isinstance(fields, str) else list(fields)
     names = [n for n in names if n]
-    unknown = [n for n in names if n not in FIELDS]
+    unknown = [n for n in names if n not in known]
+    if unknown and unknown[0] in KABSCH_FIELDS:
+        raise InputError(f"--fields: {unknown[0]!r} belongs to the 3D variant; add --kabsch")
     if unknown or not names:
         raise InputError(f"--fields: unknown field {unknown[0]!r}" if unknown else "--fields: empty"
-                         f"; choose from {', '.join(FIELDS)}")
-    return tuple(n for n in FIELDS if n in names)
+                         f"; choose from {', '.join(known)}")
+    return tuple(n for n in known if n in names)
 
 
 def parse_dtype(dtype):
@@ -77,6 +83,11 @@ class AnalysisSummary:
                          f"smallest λ2 {self.stretch_min:.4f}")
         if "flags" in self.fields:
             lines.append(f"  flagged triangle-pairs (degenerate, non-finite or flipped): {self.flagged}")
+        if "angle_max" in self.extra:
+            lines.append(f"  3D variant: largest vertex rotation {self.extra['angle_max']:.4f} rad")
+        if "vertex_flagged" in self.extra:
+            lines.append(f"  flagged vertex-pairs (degenerate ring, non-finite or ambiguous): "
+                         f"{self.extra['vertex_flagged']}")
         return "\n".join(lines)
 
 
@@ -102,6 +113,11 @@ class _Rest:
 
             mesh = reader.check_same_topology(read_ply(reference, reuse=reader.first), reference)
             self.external = ("mesh", mesh.vertices)
+
+    def uv_positions(self):
+        """The uv rest shape as (N, 3) positions (u, v, 0)·uv_scale, for the 3D variant."""
+        uv = self.external[1] * float(self.uv_scale)
+        return np.ascontiguousarray(np.column_stack([uv, np.zeros(len(uv))]), dtype=np.float64)
 
     def vertices(self):
         """Positions stored as /mesh/vertices: the reference mesh, else frame 0."""
@@ -133,18 +149,21 @@ def plan_pairs(n_frames, reference):
 
 
 def analyze_sequence(inputs, output, *, reference="previous", uv_scale=1.0, fields="all",
-                     dtype="float32", compression="none", progress=False, command=None):
+                     dtype="float32", compression="none", kabsch=False, progress=False,
+                     command=None):
     """Analyse a PLY sequence and write the per-triangle fields to ``output`` (HDF5, spec §4).
 
     ``inputs``: a folder, a glob, a file or a list of them (natural order).
     ``reference``: 'previous' (pairs (i, i+1)), 'first' (pairs (0, i)), 'uv' (the
     texture coordinates times ``uv_scale``) or the path of a PLY mesh.
     ``fields``: 'all' or names from :data:`FIELDS`; only those are computed and stored.
+    ``kabsch``: add the 3D variant (:mod:`clothtool.analysis.variant3d`); ``fields`` may then
+    also name its datasets.
     Returns an :class:`AnalysisSummary`. Raises :class:`~clothtool.errors.InputError`
     on bad input, before writing anything.
     """
     started = time.perf_counter()
-    fields = parse_fields(fields)
+    fields = parse_fields(fields, kabsch)
     store = parse_dtype(dtype)
     h5_compression = parse_compression(compression)
     check_output_path(output)
@@ -160,13 +179,25 @@ def analyze_sequence(inputs, output, *, reference="previous", uv_scale=1.0, fiel
     summary = AnalysisSummary(os.fspath(output), len(paths), len(pairs), m, reader.n_vertices,
                               fields, reference, 0.0)
     buffers = allocate_fields(m, fields, store)
+    face_2d = [name for name in fields if name in FIELDS]
+    variant = None
+    if kabsch:
+        from clothtool.analysis.variant3d import Variant3D
+
+        variant = Variant3D(faces, reader.n_vertices, fields, store, DEGENERATE_TOL)
+        x_uv = rest.uv_positions() if reference == "uv" else None
 
     with AtomicH5(output) as h5:
         _write_header(h5, paths, pairs, rest, reader, reference, uv_scale, command, store)
         group = h5.create_group("face")
         datasets = {name: create_pair_dataset(group, name, len(pairs), (m, *FIELD_SHAPES[name]),
                                               buffers[name].dtype, h5_compression)
-                    for name in fields}
+                    for name in face_2d}
+        if variant is not None:
+            variant.write_tables(h5["mesh"])
+            datasets.update({key: create_pair_dataset(h5.require_group(key[0]), key[1], len(pairs),
+                                                      value.shape, value.dtype, h5_compression)
+                             for key, value in variant.buffers.items() if key in variant.wanted})
         last = (0, reader.first.vertices)  # the frame read most recently, reused as a reference
         for p, (r, d) in enumerate(_progress(pairs, progress)):
             r, d = int(r), int(d)
@@ -177,10 +208,16 @@ def analyze_sequence(inputs, output, *, reference="previous", uv_scale=1.0, fiel
             ref = rest.get(r, x_ref)
             x = last[1] if last[0] == d else reader.positions(d)
             last = (d, x)
-            deformation_fields(x, faces, *ref, DEGENERATE_TOL, *(buffers[n] for n in FIELDS))
-            for name in fields:
+            if face_2d:
+                deformation_fields(x, faces, *ref, DEGENERATE_TOL, *(buffers[n] for n in FIELDS))
+            for name in face_2d:
                 datasets[name][p] = buffers[name]
             _accumulate(summary, buffers, fields)
+            if variant is not None:
+                values = variant.compute(x_uv if x_uv is not None else x_ref, x)
+                for key, value in values.items():
+                    datasets[key][p] = value
+                _accumulate_3d(summary, values)
     summary.seconds = time.perf_counter() - started
     return summary
 
@@ -215,6 +252,15 @@ def _accumulate(summary, buffers, fields):
             summary.stretch_min = float(np.fmin(summary.stretch_min, np.nanmin(s[:, 1])))
     if "flags" in fields:
         summary.flagged += int(np.count_nonzero(buffers["flags"]))
+
+
+def _accumulate_3d(summary, values):
+    angle = values.get(("vertex", "angle"))
+    if angle is not None and np.isfinite(angle).any():
+        summary.extra["angle_max"] = float(np.fmax(summary.extra.get("angle_max", np.nan), np.nanmax(angle)))
+    if ("vertex", "flags") in values:
+        summary.extra["vertex_flagged"] = (summary.extra.get("vertex_flagged", 0)
+                                           + int(np.count_nonzero(values["vertex", "flags"])))
 
 
 def _progress(pairs, enabled):
