@@ -7,7 +7,7 @@ from hypothesis import strategies as st
 from conftest import grid
 from scipy.spatial.transform import Rotation
 
-from clothtool.analysis.deformation2d import DEGENERATE_TOL, analyze_pair
+from clothtool.analysis.deformation2d import analyze_pair
 from clothtool.analysis.dihedral import dihedral_change
 from clothtool.analysis.kabsch import (
     AMBIGUOUS,

@@ -47,9 +47,10 @@ CHUNK = 64  # vertices / faces per batch: one parallel work item, solved in lock
 def horn_matrix(h, scale, a, k):
     """Horn's symmetric 4×4 matrix N(H)/scale into ``a[:, :, k]``; its top eigenvector is the unit
     quaternion (w, x, y, z) of the proper rotation maximising tr(R H) (Horn 1987, eq. 43)."""
-    sxx, sxy, sxz = h[0, 0] / scale, h[0, 1] / scale, h[0, 2] / scale
-    syx, syy, syz = h[1, 0] / scale, h[1, 1] / scale, h[1, 2] / scale
-    szx, szy, szz = h[2, 0] / scale, h[2, 1] / scale, h[2, 2] / scale
+    inv = 1.0 / scale
+    sxx, sxy, sxz = h[0, 0] * inv, h[0, 1] * inv, h[0, 2] * inv
+    syx, syy, syz = h[1, 0] * inv, h[1, 1] * inv, h[1, 2] * inv
+    szx, szy, szz = h[2, 0] * inv, h[2, 1] * inv, h[2, 2] * inv
     a[0, 0, k] = sxx + syy + szz
     a[1, 1, k] = sxx - syy - szz
     a[2, 2, k] = -sxx + syy - szz
@@ -76,8 +77,8 @@ def quaternion_rotation(a, v, k, rot):
         if i != top and a[i, i, k] > second:
             second = a[i, i, k]
     w, x, y, z = v[0, top, k], v[1, top, k], v[2, top, k], v[3, top, k]
-    nrm = math.sqrt(w * w + x * x + y * y + z * z)
-    w, x, y, z = w / nrm, x / nrm, y / nrm, z / nrm
+    inv = 1.0 / math.sqrt(w * w + x * x + y * y + z * z)
+    w, x, y, z = w * inv, x * inv, y * inv, z * inv
     rot[0, 0] = 1.0 - 2.0 * (y * y + z * z)
     rot[0, 1] = 2.0 * (x * y - w * z)
     rot[0, 2] = 2.0 * (x * z + w * y)
@@ -100,41 +101,40 @@ def _ring_degenerate(a00, a11, a22, a01, a02, a12):
 
 @njit(cache=True, error_model="numpy")
 def _ring_matrix(i, x_ref, x_def, offsets, neighbours, h, a, k, mean):
-    """Centre the ring of vertex i, put Horn's N(H)/√(Σ‖p‖² Σ‖q‖²) into ``a[:, :, k]`` (zeros for a
-    flagged ring) and the two ring means into ``mean`` (6,). Returns the ring's flags."""
+    """Horn's N(H)/√(Σ‖p‖² Σ‖q‖²) of the ring of vertex i into ``a[:, :, k]`` (zeros for a flagged
+    ring) and the ring means into ``mean`` (6,). Returns the ring's flags.
+
+    One pass over the ring in coordinates relative to vertex i (no cancellation from the distance
+    to the origin); the centring on the means is applied to the sums afterwards:
+    H = Σ p' q'ᵀ − m p̄' q̄'ᵀ, and likewise the scatter matrices A = Σ p pᵀ, B = Σ q qᵀ."""
     a[:, :, k] = 0.0
     lo, hi = offsets[i], offsets[i + 1]
     m = hi - lo + 1
-    mp0 = mp1 = mp2 = mq0 = mq1 = mq2 = 0.0
-    for kk in range(lo - 1, hi):
-        j = i if kk < lo else neighbours[kk]
-        mp0 += x_ref[j, 0]
-        mp1 += x_ref[j, 1]
-        mp2 += x_ref[j, 2]
-        mq0 += x_def[j, 0]
-        mq1 += x_def[j, 1]
-        mq2 += x_def[j, 2]
-    mp0, mp1, mp2 = mp0 / m, mp1 / m, mp2 / m
-    mq0, mq1, mq2 = mq0 / m, mq1 / m, mq2 / m
-    mean[0], mean[1], mean[2], mean[3], mean[4], mean[5] = mp0, mp1, mp2, mq0, mq1, mq2
-    if not (np.isfinite(mp0 + mp1 + mp2) and np.isfinite(mq0 + mq1 + mq2)):
-        return NONFINITE
-    h[:, :] = 0.0
+    o0, o1, o2 = x_ref[i, 0], x_ref[i, 1], x_ref[i, 2]
+    r0, r1, r2 = x_def[i, 0], x_def[i, 1], x_def[i, 2]
+    sp0 = sp1 = sp2 = sq0 = sq1 = sq2 = 0.0
+    h00 = h01 = h02 = h10 = h11 = h12 = h20 = h21 = h22 = 0.0
     p00 = p11 = p22 = p01 = p02 = p12 = 0.0
     q00 = q11 = q22 = q01 = q02 = q12 = 0.0
-    for kk in range(lo - 1, hi):
-        j = i if kk < lo else neighbours[kk]
-        p0, p1, p2 = x_ref[j, 0] - mp0, x_ref[j, 1] - mp1, x_ref[j, 2] - mp2
-        q0, q1, q2 = x_def[j, 0] - mq0, x_def[j, 1] - mq1, x_def[j, 2] - mq2
-        h[0, 0] += p0 * q0
-        h[0, 1] += p0 * q1
-        h[0, 2] += p0 * q2
-        h[1, 0] += p1 * q0
-        h[1, 1] += p1 * q1
-        h[1, 2] += p1 * q2
-        h[2, 0] += p2 * q0
-        h[2, 1] += p2 * q1
-        h[2, 2] += p2 * q2
+    for kk in range(lo, hi):
+        j = neighbours[kk]
+        p0, p1, p2 = x_ref[j, 0] - o0, x_ref[j, 1] - o1, x_ref[j, 2] - o2
+        q0, q1, q2 = x_def[j, 0] - r0, x_def[j, 1] - r1, x_def[j, 2] - r2
+        sp0 += p0
+        sp1 += p1
+        sp2 += p2
+        sq0 += q0
+        sq1 += q1
+        sq2 += q2
+        h00 += p0 * q0
+        h01 += p0 * q1
+        h02 += p0 * q2
+        h10 += p1 * q0
+        h11 += p1 * q1
+        h12 += p1 * q2
+        h20 += p2 * q0
+        h21 += p2 * q1
+        h22 += p2 * q2
         p00 += p0 * p0
         p11 += p1 * p1
         p22 += p2 * p2
@@ -147,6 +147,19 @@ def _ring_matrix(i, x_ref, x_def, offsets, neighbours, h, a, k, mean):
         q01 += q0 * q1
         q02 += q0 * q2
         q12 += q1 * q2
+    mp0, mp1, mp2 = sp0 / m, sp1 / m, sp2 / m  # p̄' (the vertex itself adds p' = 0)
+    mq0, mq1, mq2 = sq0 / m, sq1 / m, sq2 / m
+    mean[0], mean[1], mean[2] = o0 + mp0, o1 + mp1, o2 + mp2
+    mean[3], mean[4], mean[5] = r0 + mq0, r1 + mq1, r2 + mq2
+    if not (np.isfinite(mean[0] + mean[1] + mean[2]) and np.isfinite(mean[3] + mean[4] + mean[5])):
+        return NONFINITE
+    h[0, 0], h[0, 1], h[0, 2] = h00 - sp0 * mq0, h01 - sp0 * mq1, h02 - sp0 * mq2
+    h[1, 0], h[1, 1], h[1, 2] = h10 - sp1 * mq0, h11 - sp1 * mq1, h12 - sp1 * mq2
+    h[2, 0], h[2, 1], h[2, 2] = h20 - sp2 * mq0, h21 - sp2 * mq1, h22 - sp2 * mq2
+    p00, p11, p22 = p00 - sp0 * mp0, p11 - sp1 * mp1, p22 - sp2 * mp2
+    p01, p02, p12 = p01 - sp0 * mp1, p02 - sp0 * mp2, p12 - sp1 * mp2
+    q00, q11, q22 = q00 - sq0 * mq0, q11 - sq1 * mq1, q22 - sq2 * mq2
+    q01, q02, q12 = q01 - sq0 * mq1, q02 - sq0 * mq2, q12 - sq1 * mq2
     flags = 0
     if _ring_degenerate(p00, p11, p22, p01, p02, p12):
         flags |= REF_DEGENERATE

@@ -1,16 +1,19 @@
 """Cyclic Jacobi eigen-solver for batches of small symmetric matrices (3×3, 4×4), numba, float64.
 
-Each step zeroes one off-diagonal entry a_pq with a plane rotation (Rutishauser's form, Press et
-al., *Numerical Recipes*, 3rd ed., §11.1), written without branches as
+Each step zeroes one off-diagonal entry a_pq with a plane rotation by the smaller angle φ with
+tan φ = t (Rutishauser's form, Press et al., *Numerical Recipes*, 3rd ed., §11.1):
 
-    d = a_qq − a_pp,   t = 2 a_pq sgn(d) / (|d| + √(d² + 4 a_pq²)),   c = 1/√(1 + t²),   s = t·c
+    d = a_qq − a_pp,  g = 2 a_pq sgn(d),  u = |d| + √(d² + 4 a_pq²),  w = √(u² + g²)
+    t = g/u,  c = u/w,  s = g/w,  a_pp −= t a_pq,  a_qq += t a_pq
 
-(t = tan φ of the smaller rotation angle; a_pq = 0 gives t = 0). The B matrices of a batch are
-rotated in lockstep along the last axis so that the compiler vectorises the rotations across
-matrices; sweeps repeat until, in every matrix, the off-diagonal mass is below (2⁻⁵³)² of its
-Frobenius norm² (3–6 sweeps; convergence is quadratic). Jacobi is used because its eigenvectors
-are accurate to about ε‖A‖/gap (Demmel & Veselić 1992), better than the closed-form
-(trigonometric) 3×3 solution near repeated eigenvalues.
+evaluated with one division, 1/(u·w), and no branch (u gets 1e-150 added so that a_pq = d = 0
+gives c = 1, s = 0; the matrices are expected scaled to about unit norm). Only the upper triangle
+is updated. The B matrices of a batch are rotated in lockstep along the last axis so that the
+compiler vectorises the rotations across matrices; sweeps repeat until, in every matrix, the
+off-diagonal mass is below (2⁻⁵³)² of its Frobenius norm² (4–6 sweeps; convergence is
+quadratic). Jacobi is used because its eigenvectors are accurate to about ε‖A‖/gap (Demmel &
+Veselić 1992), better than the closed-form (trigonometric) 3×3 solution near repeated
+eigenvalues.
 """
 
 import math
@@ -20,14 +23,14 @@ from numba import njit
 
 MAX_SWEEPS = 30
 _EPS2 = 2.0**-106  # (2⁻⁵³)²
-_TINY = 1e-300  # keeps t = 0/0 out when a_pq = 0 and a_pp = a_qq
+_TINY = 1e-150  # u > 0 even when a_pq = 0 and a_pp = a_qq; (1e-150)² is still a normal number
 
 
 @njit(cache=True, error_model="numpy")
 def jacobi_eigh_batch(a, v):
-    """Diagonalise the symmetric matrices ``a[:, :, k]`` (n, n, B) in place: afterwards
-    ``a[i, i, k]`` are the eigenvalues (unsorted) and the columns ``v[:, j, k]`` the orthonormal
-    eigenvectors. Returns the number of sweeps. Matrices with NaN stop the iteration for
+    """Diagonalise the symmetric matrices ``a[:, :, k]`` (n, n, B, C-contiguous) in place:
+    afterwards ``a[i, i, k]`` are the eigenvalues (unsorted), the columns ``v[:, j, k]`` the
+    orthonormal eigenvectors and the off-diagonal entries are undefined. Returns the number of sweeps. Matrices with NaN stop the iteration for
     themselves only (their results are NaN)."""
     n, _, m = a.shape
     fro2 = np.zeros(m)
@@ -56,21 +59,25 @@ def jacobi_eigh_batch(a, v):
                 for k in range(m):
                     apq = a[p, q, k]
                     d = a[q, q, k] - a[p, p, k]
-                    tk = 2.0 * apq * math.copysign(1.0, d) / (abs(d) + math.sqrt(d * d + 4.0 * apq * apq) + _TINY)
-                    ck = 1.0 / math.sqrt(1.0 + tk * tk)
-                    c[k] = ck
-                    s[k] = tk * ck
-                    a[p, p, k] -= tk * apq
-                    a[q, q, k] += tk * apq
+                    g = 2.0 * apq if d >= 0.0 else -2.0 * apq
+                    u = abs(d) + math.sqrt(d * d + 4.0 * apq * apq) + _TINY
+                    w = math.sqrt(u * u + g * g)
+                    z = 1.0 / (u * w)
+                    c[k] = u * u * z  # u/w
+                    s[k] = g * u * z  # g/w
+                    ta = g * w * z * apq  # t·a_pq, t = g/u
+                    a[p, p, k] -= ta
+                    a[q, q, k] += ta
                     a[p, q, k] = 0.0
-                    a[q, p, k] = 0.0
                 for r in range(n):
-                    if r != p and r != q:
+                    if r != p and r != q:  # only the upper triangle is kept up to date
+                        i1, j1 = min(r, p), max(r, p)
+                        i2, j2 = min(r, q), max(r, q)
                         for k in range(m):
-                            arp = a[r, p, k]
-                            arq = a[r, q, k]
-                            a[r, p, k] = a[p, r, k] = c[k] * arp - s[k] * arq
-                            a[r, q, k] = a[q, r, k] = s[k] * arp + c[k] * arq
+                            arp = a[i1, j1, k]
+                            arq = a[i2, j2, k]
+                            a[i1, j1, k] = c[k] * arp - s[k] * arq
+                            a[i2, j2, k] = s[k] * arp + c[k] * arq
                     for k in range(m):
                         vrp = v[r, p, k]
                         vrq = v[r, q, k]
