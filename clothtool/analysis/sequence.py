@@ -19,6 +19,11 @@ from clothtool.analysis.deformation2d import (DEGENERATE_TOL, FIELDS, allocate_f
 from clothtool.errors import InputError
 from clothtool.io.frames import FrameReader, discover_frames
 from clothtool.io.h5 import AtomicH5, check_output_path, create_pair_dataset, parse_compression
+from clothtool.results.slices import parse_pair_slice
+from clothtool.results.summary import SummaryWriter
+from clothtool.results.vertex_average import (SUFFIX, VertexAverager, parse_vertex_average,
+                                              rest_areas)
+from clothtool.results.xdmf import write_xdmf, xdmf_path
 
 REFERENCE_MODES = ("previous", "first", "uv")
 EXTERNAL = -1  # the reference index of pairs against a reference mesh or the uv rest shape
@@ -133,13 +138,20 @@ def plan_pairs(n_frames, reference):
 
 
 def analyze_sequence(inputs, output, *, reference="previous", uv_scale=1.0, fields="all",
-                     dtype="float32", compression="none", progress=False, command=None):
+                     dtype="float32", compression="none", progress=False, command=None,
+                     pairs=None, vertex_average=None):
     """Analyse a PLY sequence and write the per-triangle fields to ``output`` (HDF5, spec §4).
 
     ``inputs``: a folder, a glob, a file or a list of them (natural order).
     ``reference``: 'previous' (pairs (i, i+1)), 'first' (pairs (0, i)), 'uv' (the
     texture coordinates times ``uv_scale``) or the path of a PLY mesh.
     ``fields``: 'all' or names from :data:`FIELDS`; only those are computed and stored.
+    ``pairs``: 'START:STOP' or (start, stop): compute only that slice of the pairs
+    (:mod:`clothtool.results.slices`). ``vertex_average``: face fields to also store as
+    area-weighted vertex averages ``/vertex/<name>_avg``
+    (:mod:`clothtool.results.vertex_average`). Always stored: ``/frame_vertices`` (T, N, 3),
+    the positions of every frame read, and ``/summary`` (:mod:`clothtool.results.summary`);
+    ``out.xdmf`` is written beside ``out.h5`` (:mod:`clothtool.results.xdmf`).
     Returns an :class:`AnalysisSummary`. Raises :class:`~clothtool.errors.InputError`
     on bad input, before writing anything.
     """
@@ -147,22 +159,37 @@ def analyze_sequence(inputs, output, *, reference="previous", uv_scale=1.0, fiel
     fields = parse_fields(fields)
     store = parse_dtype(dtype)
     h5_compression = parse_compression(compression)
+    averaged = parse_vertex_average(vertex_average)
     check_output_path(output)
+    xdmf = xdmf_path(output)
     paths = discover_frames(inputs)
     internal = reference in ("previous", "first")
     if internal and len(paths) < 2:
         raise InputError(f"{paths[0]}: only one frame; --reference {reference} needs at least two")
     reader = FrameReader(paths)
     rest = _Rest(reader, reference, uv_scale)
-    pairs = plan_pairs(len(paths), reference)
+    all_pairs = plan_pairs(len(paths), reference)
+    offset, stop = parse_pair_slice(pairs, len(all_pairs))
+    pairs = all_pairs[offset:stop]
     faces = reader.faces
     m = len(faces)
     summary = AnalysisSummary(os.fspath(output), len(paths), len(pairs), m, reader.n_vertices,
                               fields, reference, 0.0)
-    buffers = allocate_fields(m, fields, store)
+    # stretch, area_ratio and flags feed /summary even when they are not stored
+    buffers = allocate_fields(m, {*fields, *averaged, "stretch", "area_ratio", "flags"}, store)
+    averager = VertexAverager(faces, reader.n_vertices) if averaged else None
 
     with AtomicH5(output) as h5:
         _write_header(h5, paths, pairs, rest, reader, reference, uv_scale, command, store)
+        h5.attrs["pair_offset"] = offset
+        h5.attrs["pairs_total"] = len(all_pairs)
+        positions = create_pair_dataset(h5, "frame_vertices", len(paths), (reader.n_vertices, 3),
+                                        store, h5_compression, fillvalue=np.nan)
+        stored = np.zeros(len(paths), bool)
+        table = SummaryWriter(h5, pairs, offset)
+        vertex = {name: create_pair_dataset(h5.require_group("vertex"), name + SUFFIX, len(pairs),
+                                            (reader.n_vertices, *FIELD_SHAPES[name]), store,
+                                            h5_compression) for name in averaged}
         group = h5.create_group("face")
         datasets = {name: create_pair_dataset(group, name, len(pairs), (m, *FIELD_SHAPES[name]),
                                               buffers[name].dtype, h5_compression)
@@ -177,10 +204,26 @@ def analyze_sequence(inputs, output, *, reference="previous", uv_scale=1.0, fiel
             ref = rest.get(r, x_ref)
             x = last[1] if last[0] == d else reader.positions(d)
             last = (d, x)
+            for frame, xf in ((r, x_ref), (d, x)):
+                if frame != EXTERNAL and not stored[frame]:
+                    positions[frame] = xf
+                    stored[frame] = True
             deformation_fields(x, faces, *ref, DEGENERATE_TOL, *(buffers[n] for n in FIELDS))
             for name in fields:
                 datasets[name][p] = buffers[name]
+            table.add(p, buffers["stretch"], buffers["area_ratio"], buffers["flags"])
+            if averaged:
+                areas = rest_areas(ref[0])
+                for name in averaged:
+                    vertex[name][p] = averager(buffers[name], areas)
             _accumulate(summary, buffers, fields)
+        table.close()
+    try:
+        write_xdmf(output, xdmf)
+    except BaseException:
+        if os.path.exists(xdmf):  # never leave an XDMF that describes an older result
+            os.remove(xdmf)
+        raise
     summary.seconds = time.perf_counter() - started
     return summary
 
