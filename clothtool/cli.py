@@ -190,5 +190,31 @@ def export(result, output, pair, field, component, color_range, vertex_colors, a
     click.echo(f"wrote {output}: pair {pair}, {name} coloured over [{lo:.6g}, {hi:.6g}]")
 
 
+
+MERGE_EPILOG = """\b
+Examples:
+  clothtool analyze frames/ -o part0.h5 --pairs 0:500      # on one machine
+  clothtool analyze frames/ -o part1.h5 --pairs 500:1000   # on another
+  clothtool merge part*.h5 -o all.h5                       # equal to one run over 0:1000
+
+""" + EXIT_CODES_HELP
+
+
+@main.command(epilog=MERGE_EPILOG)
+@click.argument("parts", nargs=-1, required=True, type=click.Path(dir_okay=False))
+@click.option("-o", "--output", required=True, type=click.Path(dir_okay=False),
+              help="HDF5 file to write (an XDMF is written beside it).")
+def merge(parts, output):
+    """Join results computed in slices (analyze --pairs) into one result.
+
+    PARTS are slices of the same analysis, in any order; together they must cover
+    consecutive pairs without gap or overlap.
+    """
+    from clothtool.results.merge import merge_results
+
+    offset, n = merge_results(list(parts), output, command=" ".join(["clothtool", *sys.argv[1:]]))
+    click.echo(f"wrote {output}: pairs {offset}:{offset + n} from {len(parts)} parts")
+
+
 if __name__ == "__main__":  # pragma: no cover
     main()

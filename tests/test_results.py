@@ -288,3 +288,72 @@ def test_vertex_average_dataset(sheet):
                                    VertexAverager(faces, len(xs[0]))(j, rest), rtol=1e-12)
     with pytest.raises(InputError, match="--vertex-average: no vertex average of 'directions'"):
         clothtool.analyze_sequence(tmp / "seq", tmp / "x.h5", vertex_average="directions")
+
+
+def assert_same_result(a, b):
+    """Every dataset of ``a`` and ``b`` equal (values, dtype, chunks); root attributes equal
+    apart from provenance."""
+    with h5py.File(a) as fa, h5py.File(b) as fb:
+        names = []
+        fa.visititems(lambda n, o: names.append(n) if isinstance(o, h5py.Dataset) else None)
+        other = []
+        fb.visititems(lambda n, o: other.append(n) if isinstance(o, h5py.Dataset) else None)
+        assert sorted(names) == sorted(other)
+        for name in names:
+            assert fa[name].dtype == fb[name].dtype, name
+            assert fa[name].chunks == fb[name].chunks, name
+            np.testing.assert_array_equal(fa[name][()], fb[name][()], err_msg=name)
+        provenance = {"command", "created", "merged_commands"}
+        keys = set(fa.attrs) - provenance
+        assert keys == set(fb.attrs) - provenance
+        for key in keys:
+            assert np.array_equal(fa.attrs[key], fb.attrs[key]), key
+        assert dict(fa["summary"].attrs).keys() == dict(fb["summary"].attrs).keys()
+
+
+@pytest.mark.parametrize("reference", ["previous", "first", "uv"])
+def test_merge_of_slices_equals_single_run(sheet, reference):
+    tmp, xs, faces = sheet
+    options = dict(reference=reference, vertex_average="stretch", compression="gzip")
+    clothtool.analyze_sequence(tmp / "seq", tmp / "all.h5", **options)
+    n_pairs = FRAMES if reference == "uv" else FRAMES - 1
+    cuts = [(0, 2), (2, 3), (3, 100)]  # the last STOP is past the end: clipped
+    for k, cut in enumerate(cuts):
+        clothtool.analyze_sequence(tmp / "seq", tmp / f"part{k}.h5", pairs=cut, **options)
+    with h5py.File(tmp / "part1.h5") as f:
+        assert f.attrs["pair_offset"] == 2 and f.attrs["pairs_total"] == n_pairs
+        assert len(f["pairs"]) == 1 and f["summary/pair"][0] == 2
+    result = CliRunner().invoke(main, ["merge", str(tmp / "part2.h5"), str(tmp / "part0.h5"),
+                                       str(tmp / "part1.h5"), "-o", str(tmp / "merged.h5")])
+    assert result.exit_code == 0, result.output
+    assert f"pairs 0:{n_pairs} from 3 parts" in result.output
+    assert_same_result(tmp / "all.h5", tmp / "merged.h5")
+    with h5py.File(tmp / "merged.h5") as f:
+        assert len(f.attrs["merged_commands"]) == 3
+    times, _, _ = read_xdmf(tmp / "merged.xdmf")
+    assert len(times) == n_pairs
+
+
+def test_merge_rejects_gaps_overlaps_and_strangers(sheet):
+    tmp, xs, faces = sheet
+    run = clothtool.analyze_sequence
+    run(tmp / "seq", tmp / "a.h5", pairs="0:2")
+    run(tmp / "seq", tmp / "b.h5", pairs="1:5")
+    run(tmp / "seq", tmp / "c.h5", pairs="3:5")
+    run(tmp / "seq", tmp / "d.h5", pairs="2:5", fields="stretch")
+    run(tmp / "seq", tmp / "e.h5", pairs="2:5", reference="first")
+    runner = CliRunner()
+    for parts, message in [("ab", "b.h5: pairs 1:5 overlap"), ("ac", "pairs 2:3 are missing"),
+                           ("ad", "datasets differ"), ("ae", "attribute reference='first'")]:
+        result = runner.invoke(main, ["merge", *(str(tmp / f"{p}.h5") for p in parts),
+                                      "-o", str(tmp / "m.h5")])
+        assert result.exit_code == 2 and message in result.output, result.output
+        assert not (tmp / "m.h5").exists() and not (tmp / "m.xdmf").exists()
+
+
+def test_pairs_option_errors(sheet):
+    tmp, xs, faces = sheet
+    for spec, message in [("3", "not START:STOP"), ("9:12", "no pairs in this slice"),
+                          ("2:2", "no pairs"), ("a:b", "not START:STOP")]:
+        with pytest.raises(InputError, match=message):
+            clothtool.analyze_sequence(tmp / "seq", tmp / "x.h5", pairs=spec)
