@@ -216,5 +216,35 @@ def merge(parts, output):
     click.echo(f"wrote {output}: pairs {offset}:{offset + n} from {len(parts)} parts")
 
 
+
+PLOT_EPILOG = """\b
+Examples:
+  clothtool plot out.h5 -o fig.png
+  clothtool plot out.h5 -o fig.pdf --pair 12 --field area_ratio
+
+Needs matplotlib: pip install 'clothtool[plot]'
+
+""" + EXIT_CODES_HELP
+
+
+@main.command(epilog=PLOT_EPILOG)
+@click.argument("result", type=click.Path(dir_okay=False))
+@click.option("-o", "--output", required=True, type=click.Path(dir_okay=False),
+              help="Image to write (.png, .pdf, .svg).")
+@click.option("--pair", default=None, type=int,
+              help="Pair of the mesh map [default: the one with the largest λ1 95th percentile].")
+@click.option("--field", default=None, help="Field of the mesh map [default: stretch].")
+@click.option("--component", default=0, show_default=True, type=int,
+              help="Component of the mapped field (stretch: 0 = λ1, 1 = λ2).")
+@click.option("--dpi", default=120, show_default=True, type=int, help="Resolution of raster images.")
+def plot(result, output, pair, field, component, dpi):
+    """An overview figure: stretch and area-ratio percentiles over the sequence, histograms,
+    and one pair's field drawn on the deformed mesh."""
+    from clothtool.results.plot import plot_result
+
+    drawn = plot_result(result, output, pair=pair, field=field, component=component, dpi=dpi)
+    click.echo(f"wrote {output} (mesh map: pair {drawn})")
+
+
 if __name__ == "__main__":  # pragma: no cover
     main()

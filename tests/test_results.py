@@ -357,3 +357,32 @@ def test_pairs_option_errors(sheet):
                           ("2:2", "no pairs"), ("a:b", "not START:STOP")]:
         with pytest.raises(InputError, match=message):
             clothtool.analyze_sequence(tmp / "seq", tmp / "x.h5", pairs=spec)
+
+
+@pytest.mark.parametrize("extra", [[], ["--pair", "1", "--field", "stretch_avg"]])
+def test_plot_writes_a_png_that_is_not_blank(sheet, extra):
+    plt = pytest.importorskip("matplotlib.pyplot")
+    tmp, xs, faces = sheet
+    clothtool.analyze_sequence(tmp / "seq", tmp / "out.h5", reference="first",
+                               vertex_average="stretch")
+    png = tmp / "fig.png"
+    result = CliRunner().invoke(main, ["plot", str(tmp / "out.h5"), "-o", str(png), *extra])
+    assert result.exit_code == 0, result.output
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    image = plt.imread(png)
+    assert image.shape[0] > 500 and image.shape[1] > 500
+    assert image[..., :3].std() > 0.05  # not blank
+    # the mesh panel (bottom right) holds viridis colours: purple-blue and yellow-green
+    quarter = image[image.shape[0] // 2:, image.shape[1] // 2:, :3].reshape(-1, 3)
+    assert (np.abs(quarter - viridis(0.0)).max(axis=1) < 0.08).any()
+    assert (np.abs(quarter - viridis(1.0)).max(axis=1) < 0.08).any()
+
+
+def test_plot_without_matplotlib_is_one_line(sheet, monkeypatch):
+    tmp, xs, faces = sheet
+    clothtool.analyze_sequence(tmp / "seq", tmp / "out.h5", fields="stretch")
+    monkeypatch.setitem(__import__("sys").modules, "matplotlib", None)
+    result = CliRunner().invoke(main, ["plot", str(tmp / "out.h5"), "-o", str(tmp / "f.png")])
+    assert result.exit_code == 2
+    assert result.output.strip() == ("clothtool: error: clothtool plot needs matplotlib: "
+                                     "pip install 'clothtool[plot]'")

@@ -32,10 +32,12 @@ INT_COLUMNS = {"pair", "reference", "deformed", "flagged", *(name for name, _ in
 def pair_summary(stretch, area_ratio, flags):
     """The float and count columns of one pair (everything but pair/reference/deformed)
     from its (M, 2) stretches, (M,) area ratios and (M,) flags."""
-    stretch = np.asarray(stretch, np.float64)
+    stretch, area_ratio = np.asarray(stretch), np.asarray(area_ratio)
     valid = np.isfinite(stretch).all(axis=1)
-    l1, l2 = stretch[valid, 0], stretch[valid, 1]
-    j = np.asarray(area_ratio, np.float64)[valid]
+    if valid.all():  # the common case: views, no copies
+        l1, l2, j = stretch[:, 0], stretch[:, 1], area_ratio
+    else:
+        l1, l2, j = stretch[valid, 0], stretch[valid, 1], area_ratio[valid]
     row = {}
     for name, q in (("lambda1", l1), ("lambda2", l2), ("J", j)):
         values = np.percentile(q, PERCENTILES) if q.size else np.full(len(PERCENTILES), np.nan)
