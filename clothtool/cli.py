@@ -246,5 +246,19 @@ def plot(result, output, pair, field, component, dpi):
     click.echo(f"wrote {output} (mesh map: pair {drawn})")
 
 
+
+@main.command("init-config")
+def init_config():
+    """Print a commented default simulation config (spec §5).
+
+    \b
+      clothtool init-config > config.yaml
+      clothtool simulate config.yaml
+    """
+    from clothtool.config_tools import DEFAULT_CONFIG
+
+    click.echo(DEFAULT_CONFIG, nl=False)
+
+
 if __name__ == "__main__":  # pragma: no cover
     main()
