@@ -25,6 +25,8 @@ Where bit 1, 2 or 4 is set the float fields are NaN.
 import numpy as np
 from numba import njit, prange
 
+from clothtool import numba_setup  # noqa: F401  (threading layer, before the first kernel)
+
 DEGENERATE_TOL = 1e-8
 
 FLAG_REFERENCE_DEGENERATE = np.uint8(1)
@@ -64,7 +66,7 @@ def _edge_matrix(x, i0, i1, i2, tol):
     return a, b, area2 / a, t1x, t1y, t1z, t2x, t2y, t2z, np.uint8(0)
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, parallel=True, nogil=True)
 def reference_from_positions(x, faces, tol):
     """Rest-state data of every triangle from 3D positions.
 
@@ -92,7 +94,7 @@ def reference_from_positions(x, faces, tol):
     return dinv, basis, flags
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, parallel=True, nogil=True)
 def reference_from_uv(uv, faces, scale, tol):
     """Rest-state data from texture coordinates (Baraff–Witkin): D_r is the uv edge
     matrix [[Δu1, Δu2], [Δv1, Δv2]]·scale itself; the basis rows are (1,0,0), (0,1,0)
@@ -136,12 +138,12 @@ def polar_2x2(f00, f01, f10, f11):
     det = f00 * f11 - f01 * f10
     if det >= 0.0:
         c, s = f00 + f11, f10 - f01
-        h = np.hypot(c, s)
+        h = np.sqrt(c * c + s * s)
         c, s = c / h, s / h
         r00, r01, r10, r11 = c, -s, s, c
     else:
         c, s = f00 - f11, f10 + f01
-        h = np.hypot(c, s)
+        h = np.sqrt(c * c + s * s)
         c, s = c / h, s / h
         r00, r01, r10, r11 = c, s, s, -c
     u00 = r00 * f00 + r10 * f10
@@ -156,7 +158,7 @@ def principal_2x2(u00, u01, u11, absdet):
 
     Returns λ1 ≥ λ2 and the unit eigenvector (v0, v1) of λ1 (that of λ2 is (−v1, v0))."""
     half = 0.5 * (u00 - u11)
-    d = np.hypot(half, u01)
+    d = np.sqrt(half * half + u01 * u01)
     lam1 = 0.5 * (u00 + u11) + d
     lam2 = min(absdet / lam1, lam1) if lam1 > 0.0 else 0.0  # min: rounding when λ1 ≈ λ2
     if d == 0.0:
@@ -165,11 +167,11 @@ def principal_2x2(u00, u01, u11, absdet):
         v0, v1 = half + d, u01
     else:
         v0, v1 = u01, d - half
-    h = np.hypot(v0, v1)
+    h = np.sqrt(v0 * v0 + v1 * v1)
     return lam1, lam2, v0 / h, v1 / h
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, parallel=True, nogil=True)
 def deformation_fields(x, faces, dinv, basis, ref_flags, tol,
                        F, C, U, R, strain, stretch, directions, area_ratio, flags):
     """Fill the per-triangle fields of one pair from deformed positions ``x``.

@@ -18,11 +18,11 @@ from clothtool.analysis.deformation2d import (DEGENERATE_TOL, FIELDS, allocate_f
                                               reference_from_uv)
 from clothtool.errors import InputError
 from clothtool.io.frames import FrameReader, discover_frames
-from clothtool.io.h5 import AtomicH5, check_output_path, create_pair_dataset, parse_compression
+from clothtool.io.h5 import (AtomicH5, PairWriter, check_output_path, create_pair_dataset,
+                              parse_compression)
+from clothtool.results.extras import NEEDED, PairExtras
 from clothtool.results.slices import parse_pair_slice
-from clothtool.results.summary import SummaryWriter
-from clothtool.results.vertex_average import (SUFFIX, VertexAverager, parse_vertex_average,
-                                              rest_areas)
+from clothtool.results.vertex_average import parse_vertex_average
 from clothtool.results.xdmf import write_xdmf, xdmf_path
 
 REFERENCE_MODES = ("previous", "first", "uv")
@@ -149,9 +149,9 @@ def analyze_sequence(inputs, output, *, reference="previous", uv_scale=1.0, fiel
     ``pairs``: 'START:STOP' or (start, stop): compute only that slice of the pairs
     (:mod:`clothtool.results.slices`). ``vertex_average``: face fields to also store as
     area-weighted vertex averages ``/vertex/<name>_avg``
-    (:mod:`clothtool.results.vertex_average`). Always stored: ``/frame_vertices`` (T, N, 3),
-    the positions of every frame read, and ``/summary`` (:mod:`clothtool.results.summary`);
-    ``out.xdmf`` is written beside ``out.h5`` (:mod:`clothtool.results.xdmf`).
+    (:mod:`clothtool.results.vertex_average`). Always stored: ``/frame_vertices`` and
+    ``/summary`` (:mod:`clothtool.results.extras`); ``out.xdmf`` is written beside
+    ``out.h5`` (:mod:`clothtool.results.xdmf`).
     Returns an :class:`AnalysisSummary`. Raises :class:`~clothtool.errors.InputError`
     on bad input, before writing anything.
     """
@@ -171,53 +171,26 @@ def analyze_sequence(inputs, output, *, reference="previous", uv_scale=1.0, fiel
     all_pairs = plan_pairs(len(paths), reference)
     offset, stop = parse_pair_slice(pairs, len(all_pairs))
     pairs = all_pairs[offset:stop]
-    faces = reader.faces
-    m = len(faces)
+    m = len(reader.faces)
     summary = AnalysisSummary(os.fspath(output), len(paths), len(pairs), m, reader.n_vertices,
                               fields, reference, 0.0)
-    # stretch, area_ratio and flags feed /summary even when they are not stored
-    buffers = allocate_fields(m, {*fields, *averaged, "stretch", "area_ratio", "flags"}, store)
-    averager = VertexAverager(faces, reader.n_vertices) if averaged else None
+
+    def make_buffers():
+        return {**allocate_fields(m, {*fields, *averaged, *NEEDED}, store), **extras.buffers()}
 
     with AtomicH5(output) as h5:
         _write_header(h5, paths, pairs, rest, reader, reference, uv_scale, command, store)
         h5.attrs["pair_offset"] = offset
         h5.attrs["pairs_total"] = len(all_pairs)
-        positions = create_pair_dataset(h5, "frame_vertices", len(paths), (reader.n_vertices, 3),
-                                        store, h5_compression, fillvalue=np.nan)
-        stored = np.zeros(len(paths), bool)
-        table = SummaryWriter(h5, pairs, offset)
-        vertex = {name: create_pair_dataset(h5.require_group("vertex"), name + SUFFIX, len(pairs),
-                                            (reader.n_vertices, *FIELD_SHAPES[name]), store,
-                                            h5_compression) for name in averaged}
+        extras = PairExtras(h5, pairs, offset, len(paths), reader.faces, reader.n_vertices,
+                            {name: FIELD_SHAPES[name] for name in averaged}, store, h5_compression)
         group = h5.create_group("face")
         datasets = {name: create_pair_dataset(group, name, len(pairs), (m, *FIELD_SHAPES[name]),
-                                              buffers[name].dtype, h5_compression)
+                                              np.uint8 if name == "flags" else store, h5_compression)
                     for name in fields}
-        last = (0, reader.first.vertices)  # the frame read most recently, reused as a reference
-        for p, (r, d) in enumerate(_progress(pairs, progress)):
-            r, d = int(r), int(d)
-            if r == EXTERNAL:
-                x_ref = rest.vertices()
-            else:
-                x_ref = last[1] if last[0] == r else reader.positions(r)
-            ref = rest.get(r, x_ref)
-            x = last[1] if last[0] == d else reader.positions(d)
-            last = (d, x)
-            for frame, xf in ((r, x_ref), (d, x)):
-                if frame != EXTERNAL and not stored[frame]:
-                    positions[frame] = xf
-                    stored[frame] = True
-            deformation_fields(x, faces, *ref, DEGENERATE_TOL, *(buffers[n] for n in FIELDS))
-            for name in fields:
-                datasets[name][p] = buffers[name]
-            table.add(p, buffers["stretch"], buffers["area_ratio"], buffers["flags"])
-            if averaged:
-                areas = rest_areas(ref[0])
-                for name in averaged:
-                    vertex[name][p] = averager(buffers[name], areas)
-            _accumulate(summary, buffers, fields)
-        table.close()
+        with PairWriter({**datasets, **extras.datasets}, make_buffers) as writer:
+            _stream_pairs(pairs, reader, rest, writer, summary, fields, progress, extras)
+        extras.close()
     try:
         write_xdmf(output, xdmf)
     except BaseException:
@@ -226,6 +199,28 @@ def analyze_sequence(inputs, output, *, reference="previous", uv_scale=1.0, fiel
         raise
     summary.seconds = time.perf_counter() - started
     return summary
+
+
+def _stream_pairs(pairs, reader, rest, writer, summary, fields, progress, extras):
+    """Compute every pair, one frame in memory at a time, handing results to ``writer``."""
+    faces = reader.faces
+    last = (0, reader.first.vertices)  # the frame read most recently, reused as a reference
+    for p, (r, d) in enumerate(_progress(pairs, progress)):
+        r, d = int(r), int(d)
+        if r == EXTERNAL:
+            x_ref = rest.vertices()
+        else:
+            x_ref = last[1] if last[0] == r else reader.positions(r)
+        ref = rest.get(r, x_ref)
+        x = last[1] if last[0] == d else reader.positions(d)
+        last = (d, x)
+        extras.frame(r, x_ref)
+        extras.frame(d, x)
+        buffers = writer.buffers()
+        deformation_fields(x, faces, *ref, DEGENERATE_TOL, *(buffers[n] for n in FIELDS))
+        extras.pair(p, buffers, ref[0])
+        _accumulate(summary, buffers, fields)
+        writer.write(p, buffers)
 
 
 def _write_header(h5, paths, pairs, rest, reader, reference, uv_scale, command, store):
