@@ -386,3 +386,36 @@ def test_plot_without_matplotlib_is_one_line(sheet, monkeypatch):
     assert result.exit_code == 2
     assert result.output.strip() == ("clothtool: error: clothtool plot needs matplotlib: "
                                      "pip install 'clothtool[plot]'")
+
+
+def test_xdmf_is_generic_over_face_and_vertex_datasets(sheet):
+    """Datasets the 3D variant adds (3×3 rotations, scalars, uint8 flags, per-edge values) are
+    picked up by shape: per-face and per-vertex ones become cell and point data."""
+    from clothtool.results.xdmf import write_xdmf
+
+    tmp, xs, faces = sheet
+    out = tmp / "out.h5"
+    clothtool.analyze_sequence(tmp / "seq", out, fields="area_ratio")
+    rng = np.random.default_rng(1)
+    p, n, m = FRAMES - 1, len(xs[0]), len(faces)
+    added = {"vertex/rotation": rng.random((p, n, 3, 3)), "vertex/angle": rng.random((p, n)),
+             "vertex/flags": rng.integers(0, 16, (p, n)).astype(np.uint8),
+             "vertex/axis": rng.random((p, n, 3)).astype(np.float32),
+             "face/F3": rng.random((p, m, 3, 3)).astype(np.float32),
+             "edge/dihedral_change": rng.random((p, 40))}
+    with h5py.File(out, "a") as f:
+        for name, value in added.items():
+            f.create_dataset(name, data=value, chunks=(1, *value.shape[1:]))
+    write_xdmf(out)
+    times, reader, log = read_xdmf(tmp / "out.xdmf")
+    reader.UpdateTimeStep(times[2])
+    grid_ = reader.GetOutputDataObject(0)
+    cells, points = arrays(grid_.GetCellData()), arrays(grid_.GetPointData())
+    assert set(cells) == {"area_ratio", "F3"} and set(points) == {"rotation", "angle", "flags", "axis"}
+    for name, value in added.items():
+        group, short = name.split("/")
+        if group != "edge":
+            got = (cells if group == "face" else points)[short]
+            np.testing.assert_array_equal(got.reshape(value[2].shape), value[2])
+    assert grid_.GetPointData().GetArray("rotation").GetNumberOfComponents() == 9
+    assert "rror" not in log.GetOutput()
