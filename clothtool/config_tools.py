@@ -16,7 +16,8 @@ import yaml
 from clothtool.errors import InputError
 
 DEFAULT_CONFIG = """\
-# clothtool simulation config (spec §5). SI units: metres, kilograms, seconds.
+# clothtool simulation config (spec §5, plus the simulator's optional settings).
+# SI units: metres, kilograms, seconds.
 # Run it with:  clothtool simulate config.yaml   (override entries with --set key=value)
 # Paths are relative to this file's folder.
 
@@ -26,8 +27,9 @@ mesh:
   # row j = ny − 1 is the top row, vertex index = j·nx + i
   grid: {nx: 30, ny: 30, width: 1.0, height: 1.0, plane: xy}
   # or a mesh file instead of `grid` (its s,t / u,v texture coordinates, when present,
-  # are the rest shape):
+  # are the rest shape, in metres per uv unit times uv_scale):
   # ply: rest.ply
+  # uv_scale: 1.0
 
 material:
   density: 0.2          # kg/m², areal mass density
@@ -35,6 +37,7 @@ material:
   shear: 50.0           # N/m, in-plane shear stiffness
   bend: 1.0e-5          # N·m, bending stiffness
   damping: 0.01         # s, stiffness-proportional damping; 0 = none
+  bend_model: dihedral  # dihedral (angle-based) or quadratic
   # stiffnesses are per unit area (energy density integrated over the rest area), so
   # refining the mesh converges to the same shape instead of changing it
 
@@ -42,14 +45,19 @@ scene:
   gravity: [0, -9.81, 0]        # m/s²
   pins: [top_corners]           # named vertex sets and/or vertex indices held in place
   colliders:
-    - sphere: {center: [0, -0.5, 0], radius: 0.3}
+    - sphere: {center: [0, -0.5, 0], radius: 0.3}   # each may also set friction: 0.0
     - plane: {point: [0, -1, 0], normal: [0, 1, 0]}
+  collision_margin: 1.0e-3      # m, vertices are kept this far outside every collider
 
 solver:
   method: implicit      # Baraff–Witkin implicit Euler
   substeps: 1           # solver steps per frame
   tolerance: 1.0e-6     # relative residual of the linear solve
-  max_iterations: 500   # conjugate-gradient iterations per step, at most
+  max_iterations: 500   # conjugate-gradient iterations per solve, at most
+  newton_iterations: 1  # Newton steps per solver step (1 = linearised implicit Euler)
+  newton_tolerance: 1.0e-6  # m/s, Newton stops when the largest velocity correction is below
+  line_search: true     # backtracking line search on the Newton steps
+  max_speed: 1000.0     # m/s, a faster vertex counts as a blow-up (exit code 3)
 
 time:
   fps: 30               # frames per second of simulated time

@@ -8,14 +8,17 @@ from clothtool.cli import main
 from clothtool.config_tools import DEFAULT_CONFIG, apply_overrides
 from clothtool.errors import InputError
 
-SPEC_DEFAULTS = {  # spec §5, entry by entry
+SPEC_DEFAULTS = {  # spec §5, entry by entry, and the simulator's optional settings
     "mesh": {"grid": {"nx": 30, "ny": 30, "width": 1.0, "height": 1.0, "plane": "xy"}},
     "material": {"density": 0.2, "stretch": 5000.0, "shear": 50.0, "bend": 1.0e-5,
-                 "damping": 0.01},
+                 "damping": 0.01, "bend_model": "dihedral"},
     "scene": {"gravity": [0, -9.81, 0], "pins": ["top_corners"],
               "colliders": [{"sphere": {"center": [0, -0.5, 0], "radius": 0.3}},
-                            {"plane": {"point": [0, -1, 0], "normal": [0, 1, 0]}}]},
-    "solver": {"method": "implicit", "substeps": 1, "tolerance": 1.0e-6, "max_iterations": 500},
+                            {"plane": {"point": [0, -1, 0], "normal": [0, 1, 0]}}],
+              "collision_margin": 1.0e-3},
+    "solver": {"method": "implicit", "substeps": 1, "tolerance": 1.0e-6, "max_iterations": 500,
+               "newton_iterations": 1, "newton_tolerance": 1.0e-6, "line_search": True,
+               "max_speed": 1000.0},
     "time": {"fps": 30, "frames": 120},
     "output": {"dir": "out/", "every": 1},
 }
@@ -62,3 +65,20 @@ def test_overrides():
 def test_override_errors_name_the_assignment(assignment, message):
     with pytest.raises(InputError, match=message):
         apply_overrides(yaml.safe_load(DEFAULT_CONFIG), [assignment])
+
+
+
+def test_default_config_matches_the_simulator():
+    """init-config loads in the simulator and shows every setting of its schema, each with the
+    simulator's default (except the spec's example pins and colliders, and the output path)."""
+    sim = pytest.importorskip("clothtool.sim.config")
+    raw = yaml.safe_load(DEFAULT_CONFIG)
+    printed = sim.as_dict(sim.load_config(raw))
+    assert set(raw["mesh"]["grid"]) == set(sim.as_dict(sim.GridSpec()))
+    for section, cls in sim.SECTIONS.items():
+        if section == "mesh":
+            continue
+        for key, default in sim.as_dict(cls()).items():
+            assert key in raw[section], f"{section}.{key} is missing from init-config"
+            if (section, key) not in {("scene", "pins"), ("scene", "colliders"), ("output", "dir")}:
+                assert printed[section][key] == default, f"{section}.{key}"
