@@ -24,8 +24,10 @@ DEFAULT_CONFIG = """\
 mesh:
   # a regular grid: nx × ny vertices (at least 2 each), centred on the origin in the named
   # plane (xy, xz or yz), `width` along its first axis and `height` along its second;
-  # row j = ny − 1 is the top row, vertex index = j·nx + i
-  grid: {nx: 30, ny: 30, width: 1.0, height: 1.0, plane: xy}
+  # row j = ny − 1 is the top row, vertex index = j·nx + i. Here a horizontal sheet (xz)
+  # that hangs from two corners and drapes over the sphere (an upright xy sheet would
+  # start inside it)
+  grid: {nx: 30, ny: 30, width: 1.0, height: 1.0, plane: xz}
   # or a mesh file instead of `grid` (its s,t / u,v texture coordinates, when present,
   # are the rest shape, in metres per uv unit times uv_scale):
   # ply: rest.ply

@@ -8,8 +8,9 @@ from clothtool.cli import main
 from clothtool.config_tools import DEFAULT_CONFIG, apply_overrides
 from clothtool.errors import InputError
 
-SPEC_DEFAULTS = {  # spec §5, entry by entry, and the simulator's optional settings
-    "mesh": {"grid": {"nx": 30, "ny": 30, "width": 1.0, "height": 1.0, "plane": "xy"}},
+SPEC_DEFAULTS = {  # spec §5, entry by entry, and the simulator's optional settings; the
+    # sheet is horizontal (xz), since an upright one (the spec's xy) starts inside the sphere
+    "mesh": {"grid": {"nx": 30, "ny": 30, "width": 1.0, "height": 1.0, "plane": "xz"}},
     "material": {"density": 0.2, "stretch": 5000.0, "shear": 50.0, "bend": 1.0e-5,
                  "damping": 0.01, "bend_model": "dihedral"},
     "scene": {"gravity": [0, -9.81, 0], "pins": ["top_corners"],
