@@ -15,6 +15,7 @@ from clothtool.cli import main
 from clothtool.errors import InputError
 from clothtool.io.ply import read_ply, write_ply
 from clothtool.results.colormap import VIRIDIS_ANCHORS, colorize, viridis
+from clothtool.results.merge import merge_results
 from clothtool.results.summary import COLUMNS, PERCENTILES, TOL
 from clothtool.results.vertex_average import VertexAverager
 
@@ -332,6 +333,12 @@ def test_merge_of_slices_equals_single_run(sheet, reference):
         assert len(f.attrs["merged_commands"]) == 3
     times, _, _ = read_xdmf(tmp / "merged.xdmf")
     assert len(times) == n_pairs
+    # merging in stages gives the same
+    merge_results([tmp / "part1.h5", tmp / "part0.h5"], tmp / "m01.h5")
+    merge_results([tmp / "m01.h5", tmp / "part2.h5"], tmp / "staged.h5")
+    assert_same_result(tmp / "all.h5", tmp / "staged.h5")
+    with h5py.File(tmp / "staged.h5") as f:
+        assert len(f.attrs["merged_commands"]) == 3
 
 
 def test_merge_rejects_gaps_overlaps_and_strangers(sheet):

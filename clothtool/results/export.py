@@ -37,8 +37,9 @@ def triangle_areas(x, faces):
 
 
 def field_values(h5, pair, field, component):
-    """(values, where) of pair ``pair`` (global index): the ``component``-th component of
-    ``/face/<field>`` (where = 'face') or ``/vertex/<field>`` (where = 'vertex')."""
+    """(values, where, name) of pair ``pair`` (global index): the ``component``-th component
+    of ``/face/<field>`` (where = 'face') or ``/vertex/<field>`` (where = 'vertex'), and its
+    property name (``field``, or ``field_<component>`` for a field with several)."""
     offset = int(h5.attrs.get("pair_offset", 0))
     n_pairs = len(h5["pairs"])
     if not offset <= pair < offset + n_pairs:

@@ -9,7 +9,8 @@ in any order but must be slices of the same analysis (same frames, mesh, referen
 dtype and clothtool version) that follow each other without gap or overlap.
 
 Root attributes: those of the parts (equal in all), ``pair_offset`` of the first part,
-``command`` = the merge command, ``created`` = now, ``merged_commands`` = the parts' commands.
+``command`` = the merge command, ``created`` = now, ``merged_commands`` = the parts' commands
+(of their own parts, for a part that is itself merged).
 """
 
 import datetime
@@ -21,7 +22,7 @@ from clothtool.errors import InputError
 from clothtool.results.info import open_result
 
 PAIR_GROUPS = ("face", "vertex", "edge", "summary")
-VARYING_ATTRS = ("command", "created", "pair_offset")  # differ between parts
+VARYING_ATTRS = ("command", "created", "pair_offset", "merged_commands")  # differ between parts
 BLOCK_BYTES = 64 << 20  # rows copied at a time
 
 
@@ -53,11 +54,11 @@ def _check_parts(parts):
     first = parts[0]
     names = _datasets(first)
     for h5 in parts[1:]:
-        for key, value in first.attrs.items():
-            if key not in VARYING_ATTRS and not np.array_equal(h5.attrs.get(key), value):
-                raise InputError(f"{h5.filename}: attribute {key}={_text(h5.attrs.get(key))!r} "
-                                 f"differs from {_text(value)!r} in {first.filename}; "
-                                 "not a slice of the same analysis")
+        for key in set(first.attrs) | set(h5.attrs):
+            a, b = first.attrs.get(key), h5.attrs.get(key)
+            if key not in VARYING_ATTRS and (a is None or b is None or not np.array_equal(a, b)):
+                raise InputError(f"{h5.filename}: attribute {key}={_text(b)!r} differs from "
+                                 f"{_text(a)!r} in {first.filename}; not a slice of the same analysis")
         other = _datasets(h5)
         if set(other) != set(names):
             diff = sorted(set(other) ^ set(names))[0]
@@ -126,7 +127,9 @@ def merge_results(paths, output, *, command=None):
             dst.attrs.update(first.attrs)
             dst.attrs["command"] = command or "clothtool.merge_results"
             dst.attrs["created"] = datetime.datetime.now().astimezone().isoformat(timespec="seconds")
-            dst.attrs["merged_commands"] = [_text(h5.attrs.get("command", "")) for h5 in parts]
+            dst.attrs["merged_commands"] = [
+                _text(c) for h5 in parts
+                for c in h5.attrs.get("merged_commands", [h5.attrs.get("command", "")])]
             for name in _datasets(first):
                 parent = os.path.dirname(name)
                 if parent and parent not in dst:
