@@ -18,7 +18,12 @@ from clothtool.analysis.deformation2d import (DEGENERATE_TOL, FIELDS, allocate_f
                                               reference_from_uv)
 from clothtool.errors import InputError
 from clothtool.io.frames import FrameReader, discover_frames
-from clothtool.io.h5 import AtomicH5, check_output_path, create_pair_dataset, parse_compression
+from clothtool.io.h5 import (AtomicH5, PairWriter, check_output_path, create_pair_dataset,
+                              parse_compression)
+from clothtool.results.extras import NEEDED, PairExtras
+from clothtool.results.slices import parse_pair_slice
+from clothtool.results.vertex_average import parse_vertex_average
+from clothtool.results.xdmf import write_xdmf, xdmf_path
 
 REFERENCE_MODES = ("previous", "first", "uv")
 EXTERNAL = -1  # the reference index of pairs against a reference mesh or the uv rest shape
@@ -150,7 +155,7 @@ def plan_pairs(n_frames, reference):
 
 def analyze_sequence(inputs, output, *, reference="previous", uv_scale=1.0, fields="all",
                      dtype="float32", compression="none", kabsch=False, progress=False,
-                     command=None):
+                     command=None, pairs=None, vertex_average=None):
     """Analyse a PLY sequence and write the per-triangle fields to ``output`` (HDF5, spec §4).
 
     ``inputs``: a folder, a glob, a file or a list of them (natural order).
@@ -159,6 +164,12 @@ def analyze_sequence(inputs, output, *, reference="previous", uv_scale=1.0, fiel
     ``fields``: 'all' or names from :data:`FIELDS`; only those are computed and stored.
     ``kabsch``: add the 3D variant (:mod:`clothtool.analysis.variant3d`); ``fields`` may then
     also name its datasets.
+    ``pairs``: 'START:STOP' or (start, stop): compute only that slice of the pairs
+    (:mod:`clothtool.results.slices`). ``vertex_average``: face fields to also store as
+    area-weighted vertex averages ``/vertex/<name>_avg``
+    (:mod:`clothtool.results.vertex_average`). Always stored: ``/frame_vertices`` and
+    ``/summary`` (:mod:`clothtool.results.extras`); ``out.xdmf`` is written beside
+    ``out.h5`` (:mod:`clothtool.results.xdmf`).
     Returns an :class:`AnalysisSummary`. Raises :class:`~clothtool.errors.InputError`
     on bad input, before writing anything.
     """
@@ -166,60 +177,81 @@ def analyze_sequence(inputs, output, *, reference="previous", uv_scale=1.0, fiel
     fields = parse_fields(fields, kabsch)
     store = parse_dtype(dtype)
     h5_compression = parse_compression(compression)
+    averaged = parse_vertex_average(vertex_average)
     check_output_path(output)
+    xdmf = xdmf_path(output)
     paths = discover_frames(inputs)
     internal = reference in ("previous", "first")
     if internal and len(paths) < 2:
         raise InputError(f"{paths[0]}: only one frame; --reference {reference} needs at least two")
     reader = FrameReader(paths)
     rest = _Rest(reader, reference, uv_scale)
-    pairs = plan_pairs(len(paths), reference)
-    faces = reader.faces
-    m = len(faces)
+    all_pairs = plan_pairs(len(paths), reference)
+    offset, stop = parse_pair_slice(pairs, len(all_pairs))
+    pairs = all_pairs[offset:stop]
+    m = len(reader.faces)
     summary = AnalysisSummary(os.fspath(output), len(paths), len(pairs), m, reader.n_vertices,
                               fields, reference, 0.0)
-    buffers = allocate_fields(m, fields, store)
-    face_2d = [name for name in fields if name in FIELDS]
+
     variant = None
     if kabsch:
         from clothtool.analysis.variant3d import Variant3D
 
-        variant = Variant3D(faces, reader.n_vertices, fields, store, DEGENERATE_TOL)
-        x_uv = rest.uv_positions() if reference == "uv" else None
+        variant = Variant3D(reader.faces, reader.n_vertices, fields, DEGENERATE_TOL)
+
+    def make_buffers():
+        return {**allocate_fields(m, {*fields, *averaged, *NEEDED}, store), **extras.buffers(),
+                **(variant.buffers(store) if variant else {})}
 
     with AtomicH5(output) as h5:
         _write_header(h5, paths, pairs, rest, reader, reference, uv_scale, command, store)
+        h5.attrs["pair_offset"] = offset
+        h5.attrs["pairs_total"] = len(all_pairs)
+        extras = PairExtras(h5, pairs, offset, len(paths), reader.faces, reader.n_vertices,
+                            {name: FIELD_SHAPES[name] for name in averaged}, store, h5_compression)
         group = h5.create_group("face")
         datasets = {name: create_pair_dataset(group, name, len(pairs), (m, *FIELD_SHAPES[name]),
-                                              buffers[name].dtype, h5_compression)
-                    for name in face_2d}
-        if variant is not None:
-            variant.write_tables(h5["mesh"])
-            datasets.update({key: create_pair_dataset(h5.require_group(key[0]), key[1], len(pairs),
-                                                      value.shape, value.dtype, h5_compression)
-                             for key, value in variant.buffers.items() if key in variant.wanted})
-        last = (0, reader.first.vertices)  # the frame read most recently, reused as a reference
-        for p, (r, d) in enumerate(_progress(pairs, progress)):
-            r, d = int(r), int(d)
-            if r == EXTERNAL:
-                x_ref = rest.vertices()
-            else:
-                x_ref = last[1] if last[0] == r else reader.positions(r)
-            ref = rest.get(r, x_ref)
-            x = last[1] if last[0] == d else reader.positions(d)
-            last = (d, x)
-            if face_2d:
-                deformation_fields(x, faces, *ref, DEGENERATE_TOL, *(buffers[n] for n in FIELDS))
-            for name in face_2d:
-                datasets[name][p] = buffers[name]
-            _accumulate(summary, buffers, fields)
-            if variant is not None:
-                values = variant.compute(x_uv if x_uv is not None else x_ref, x)
-                for key, value in values.items():
-                    datasets[key][p] = value
-                _accumulate_3d(summary, values)
+                                              np.uint8 if name == "flags" else store, h5_compression)
+                    for name in fields if name in FIELDS}
+        if variant:
+            datasets.update(variant.create_datasets(h5, len(pairs), store, h5_compression))
+        with PairWriter({**datasets, **extras.datasets}, make_buffers) as writer:
+            _stream_pairs(pairs, reader, rest, writer, summary, fields, progress, extras, variant)
+        extras.close()
+    try:
+        write_xdmf(output, xdmf)
+    except BaseException:
+        if os.path.exists(xdmf):  # never leave an XDMF that describes an older result
+            os.remove(xdmf)
+        raise
     summary.seconds = time.perf_counter() - started
     return summary
+
+
+def _stream_pairs(pairs, reader, rest, writer, summary, fields, progress, extras, variant):
+    """Compute every pair, one frame in memory at a time, handing results to ``writer``."""
+    faces = reader.faces
+    x_uv = rest.uv_positions() if variant and rest.reference == "uv" else None
+    last = (0, reader.first.vertices)  # the frame read most recently, reused as a reference
+    for p, (r, d) in enumerate(_progress(pairs, progress)):
+        r, d = int(r), int(d)
+        if r == EXTERNAL:
+            x_ref = rest.vertices()
+        else:
+            x_ref = last[1] if last[0] == r else reader.positions(r)
+        ref = rest.get(r, x_ref)
+        x = last[1] if last[0] == d else reader.positions(d)
+        last = (d, x)
+        extras.frame(r, x_ref)
+        extras.frame(d, x)
+        buffers = writer.buffers()
+        deformation_fields(x, faces, *ref, DEGENERATE_TOL, *(buffers[n] for n in FIELDS))
+        extras.pair(p, buffers, ref[0])
+        _accumulate(summary, buffers, fields)
+        if variant:
+            variant.compute(x_ref if x_uv is None else x_uv, x, buffers)
+            _accumulate_3d(summary, buffers)
+        writer.write(p, buffers)
 
 
 def _write_header(h5, paths, pairs, rest, reader, reference, uv_scale, command, store):
@@ -254,13 +286,13 @@ def _accumulate(summary, buffers, fields):
         summary.flagged += int(np.count_nonzero(buffers["flags"]))
 
 
-def _accumulate_3d(summary, values):
-    angle = values.get(("vertex", "angle"))
-    if angle is not None and np.isfinite(angle).any():
+def _accumulate_3d(summary, buffers):
+    angle = buffers["vertex/angle"]
+    if angle.size and np.isfinite(angle).any():
         summary.extra["angle_max"] = float(np.fmax(summary.extra.get("angle_max", np.nan), np.nanmax(angle)))
-    if ("vertex", "flags") in values:
+    if buffers["vertex/flags"].size:
         summary.extra["vertex_flagged"] = (summary.extra.get("vertex_flagged", 0)
-                                           + int(np.count_nonzero(values["vertex", "flags"])))
+                                           + int(np.count_nonzero(buffers["vertex/flags"])))
 
 
 def _progress(pairs, enabled):
