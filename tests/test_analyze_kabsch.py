@@ -14,6 +14,7 @@ from clothtool.analysis.topology import interior_edges, one_ring
 from clothtool.cli import main
 from clothtool.errors import InputError
 from clothtool.io.ply import write_ply
+from clothtool.results.merge import merge_results
 
 N_FRAMES = 4
 
@@ -66,6 +67,8 @@ def test_layout_and_values(tmp_path, reference):
             for name, value in expected(x_ref, xs[d], faces).items():
                 np.testing.assert_array_equal(f[name][p], value, err_msg=name)
         np.testing.assert_array_equal(f["face/flags"][:] & 7, 0)
+    xdmf = (tmp_path / "out.xdmf").read_text()
+    assert "/vertex/rotation" in xdmf and "/face/F3" in xdmf and "/edge/" not in xdmf
     if reference == "uv":  # frame k against the flat uv sheet: the turn 0.3·k about z dominates
         with h5py.File(out) as f:
             assert np.all(f["vertex/angle"][0] < 1e-12) and np.all(f["vertex/angle"][3] > 0.8)
@@ -91,6 +94,17 @@ def test_fields_select_3d_datasets(tmp_path):
     clothtool.analyze_sequence(tmp_path / "seq", out, fields="flags", kabsch=True)
     with h5py.File(out) as f:
         assert set(f["face"]) == {"flags"} and set(f["vertex"]) == {"flags"} and set(f["edge"]) == {"flags"}
+
+
+def test_merge_of_kabsch_slices_equals_single_run(tmp_path):
+    make_sequence(tmp_path / "seq")
+    clothtool.analyze_sequence(tmp_path / "seq", tmp_path / "all.h5", kabsch=True)
+    for k, part in enumerate(("0:1", "1:3")):
+        clothtool.analyze_sequence(tmp_path / "seq", tmp_path / f"part{k}.h5", kabsch=True, pairs=part)
+    merge_results([tmp_path / "part1.h5", tmp_path / "part0.h5"], tmp_path / "merged.h5")
+    with h5py.File(tmp_path / "all.h5") as a, h5py.File(tmp_path / "merged.h5") as b:
+        for name in ("vertex/rotation", "vertex/flags", "face/R3", "edge/dihedral_change", "mesh/edges"):
+            np.testing.assert_array_equal(a[name][:], b[name][:], err_msg=name)
 
 
 def test_3d_fields_need_kabsch(tmp_path):
