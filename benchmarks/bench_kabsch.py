@@ -1,6 +1,7 @@
 """The 3D (Kabsch) variant (issue 3): throughput and accuracy, against a batched numpy SVD route.
 
-    python benchmarks/bench_kabsch.py            # writes bench-results/kabsch.csv and kabsch.md
+    python -m benchmarks kabsch          # (or python -m benchmarks.bench_kabsch) writes
+                                         # bench-results/kabsch.csv and kabsch.md
 
 On a 224×224-vertex grid (99 458 triangles) deformed by a moving, stretching, bending wave, in
 one run and with the same one-ring table:
@@ -8,25 +9,25 @@ one run and with the same one-ring table:
   one thread, against the numpy route (ring covariances by np.add.reduceat, np.linalg.svd on the
   stacked 3×3 matrices, det fix R = V diag(1, 1, det VUᵀ) Uᵀ); both give rotation, angle and
   residual. Medians over repeats; vertex-pairs per second.
-- the maximum rotation error of both against scipy's Rotation.align_vectors (float64) on the
-  deformation, and against the exact rotation of a rigid motion; the error growth on thin rings
-  (relative eigen-gap down to 1e-8);
+- the maximum rotation error of both on the deformation against Horn's method evaluated in
+  extended precision (np.longdouble Jacobi, 64-bit mantissa) and against scipy's
+  Rotation.align_vectors (float64), and against the exact rotation of a rigid motion; the error
+  growth on thin rings (relative eigen-gap down to 1e-8);
 - the Jacobi eigen-solver on random symmetric 4×4 and 3×3 matrices: eigen-residual,
   orthogonality, eigenvalues against numpy.linalg.eigvalsh, sweeps;
 - the whole per-pair cost inside ``analyze --kabsch`` (vertex + face + edge kernels).
 """
 
-import csv
 import os
 import pathlib
 import statistics
-import sys
 import time
 
 import numba
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from benchmarks.common import markdown_table, write_csv
 from clothtool.analysis.deformation2d import DEGENERATE_TOL
 from clothtool.analysis.kabsch import horn_matrix, vertex_rotations
 from clothtool.analysis.symeig import jacobi_eigh_batch
@@ -105,6 +106,38 @@ def scipy_reference(x_ref, x_def, offsets, neighbours):
     return out
 
 
+def longdouble_reference(x_ref, x_def, offsets, neighbours):
+    """Horn's rotation per vertex with every step in np.longdouble: ring covariances, N(H),
+    cyclic Jacobi vectorised over the vertices (10 sweeps), quaternion → matrix."""
+    route = NumpyRoute(offsets, neighbours)
+    p, q = x_ref[route.ring].astype(np.longdouble), x_def[route.ring].astype(np.longdouble)
+    p -= (np.add.reduceat(p, route.starts) / route.counts[:, None])[route.owner]
+    q -= (np.add.reduceat(q, route.starts) / route.counts[:, None])[route.owner]
+    S = np.add.reduceat(p[:, :, None] * q[:, None, :], route.starts)
+    (xx, xy, xz), (yx, yy, yz), (zx, zy, zz) = S[:, 0].T, S[:, 1].T, S[:, 2].T
+    A = np.stack([np.stack([xx + yy + zz, yz - zy, zx - xz, xy - yx], 1),
+                  np.stack([yz - zy, xx - yy - zz, xy + yx, zx + xz], 1),
+                  np.stack([zx - xz, xy + yx, -xx + yy - zz, yz + zy], 1),
+                  np.stack([xy - yx, zx + xz, yz + zy, -xx - yy + zz], 1)], 1)
+    V = np.broadcast_to(np.eye(4, dtype=np.longdouble), A.shape).copy()
+    for _ in range(10):
+        for i in range(3):
+            for j in range(i + 1, 4):
+                apq, d = A[:, i, j], A[:, j, j] - A[:, i, i]
+                t = np.where(d >= 0, 2, -2) * apq / (np.abs(d) + np.sqrt(d * d + 4 * apq * apq) + 1e-300)
+                c = 1 / np.sqrt(1 + t * t)
+                s = t * c
+                J = np.broadcast_to(np.eye(4, dtype=np.longdouble), A.shape).copy()
+                J[:, i, i], J[:, j, j], J[:, i, j], J[:, j, i] = c, c, s, -s
+                A = np.swapaxes(J, 1, 2) @ A @ J
+                V = V @ J
+    top = np.argmax(np.einsum("nii->ni", A), axis=1)
+    w, x, y, z = V[np.arange(len(V)), :, top].T
+    return np.stack([np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], 1),
+                     np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], 1),
+                     np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], 1)], 1)
+
+
 def thin_ring_errors(rng, widths=(1e-1, 1e-2, 1e-3, 1e-4), n=20000):
     """Rigidly moved planar rings of 7 points whose width across their axis is ``w`` × their
     length: the relative eigen-gap is ≈ w², so both routes lose accuracy like ε/w²."""
@@ -137,11 +170,11 @@ def eigen_accuracy(rng, n_matrices=200000):
         else:  # symmetric, scales over six decades
             A = rng.normal(size=(n_matrices, size, size)) * 10.0 ** rng.uniform(-3, 3, (n_matrices, 1, 1))
             A = A + np.swapaxes(A, 1, 2)
-        a = A.transpose(1, 2, 0).copy()
-        v = np.empty_like(a)
-        sweeps = [jacobi_eigh_batch(a[:, :, s:s + 64], v[:, :, s:s + 64]) for s in range(0, n_matrices, 64)]
-        lam = np.einsum("iik->ki", a)
-        V = v.transpose(2, 0, 1)
+        batches = [A[s:s + 64].transpose(1, 2, 0).copy() for s in range(0, n_matrices, 64)]
+        vectors = [np.empty_like(a) for a in batches]
+        sweeps = [jacobi_eigh_batch(a, v) for a, v in zip(batches, vectors)]
+        lam = np.concatenate([np.einsum("iik->ki", a) for a in batches])
+        V = np.concatenate([v.transpose(2, 0, 1) for v in vectors])
         norm = np.linalg.norm(A, ord=2, axis=(1, 2))
         resid = np.linalg.norm(A @ V - V * lam[:, None, :], axis=1).max(1) / norm
         ortho = np.abs(np.swapaxes(V, 1, 2) @ V - np.eye(size)).max((1, 2))
@@ -151,16 +184,6 @@ def eigen_accuracy(rng, n_matrices=200000):
                      "max_eigenvalue_err_rel": eig.max(),
                      "sweeps_per_batch_of_64": f"{min(sweeps)}-{max(sweeps)} (median {statistics.median(sweeps):g})"})
     return rows
-
-
-def markdown_table(rows, columns):
-    def fmt(value):
-        if isinstance(value, float):
-            return f"{value:.3g}" if abs(value) < 1e4 else f"{value:.4g}"
-        return str(value)
-    lines = ["| " + " | ".join(columns) + " |", "|" + "---|" * len(columns)]
-    lines += ["| " + " | ".join(fmt(r.get(c, "")) for c in columns) + " |" for r in rows]
-    return "\n".join(lines) + "\n"
 
 
 def run(out_dir):
@@ -188,12 +211,14 @@ def run(out_dir):
     numba.set_num_threads(threads)
     t_numpy = median_seconds(theirs, repeat=3)
 
-    variant = Variant3D(faces, n, KABSCH_FIELDS + ("flags",), np.float32, DEGENERATE_TOL)
-    t_variant = median_seconds(lambda: [variant.compute(x_ref, x_def) for x_ref, x_def in pairs])
+    variant = Variant3D(faces, n, KABSCH_FIELDS + ("flags",), DEGENERATE_TOL)
+    buffers = variant.buffers(np.float32)
+    t_variant = median_seconds(lambda: [variant.compute(x_ref, x_def, buffers) for x_ref, x_def in pairs])
 
     # accuracy on the deformation (first pair) and on a rigid motion
     x_ref, x_def = pairs[0]
     reference = scipy_reference(x_ref, x_def, offsets, neighbours)
+    extended = longdouble_reference(x_ref, x_def, offsets, neighbours)
     R_ours, angle_ours, res_ours, flags = vertex_rotations(x_ref, x_def, offsets, neighbours)
     R_np, angle_np, res_np = numpy_route(x_ref, x_def)
     R_true = Rotation.from_rotvec([0.4, -2.0, 1.1]).as_matrix()
@@ -205,12 +230,14 @@ def run(out_dir):
     rows = [
         {"route": f"clothtool vertex kernel, {threads} threads", "seconds_per_pair": t_ours / len(pairs),
          "vertex_pairs_per_s": vp / t_ours, "speedup_vs_numpy": t_numpy / t_ours,
+         "max_rot_err_vs_longdouble": float(np.abs(R_ours - extended).max()),
          "max_rot_err_vs_scipy": np.abs(R_ours - reference).max(),
          "max_rot_err_rigid": np.abs(R_ours_rigid - R_true).max(), "max_residual_rigid": res_ours_rigid.max()},
         {"route": "clothtool vertex kernel, 1 thread", "seconds_per_pair": t_ours_1 / len(pairs),
          "vertex_pairs_per_s": vp / t_ours_1, "speedup_vs_numpy": t_numpy / t_ours_1},
         {"route": "numpy route (reduceat + batched np.linalg.svd + det fix)", "seconds_per_pair": t_numpy / len(pairs),
          "vertex_pairs_per_s": vp / t_numpy, "speedup_vs_numpy": 1.0,
+         "max_rot_err_vs_longdouble": float(np.abs(R_np - extended).max()),
          "max_rot_err_vs_scipy": np.abs(R_np - reference).max(),
          "max_rot_err_rigid": np.abs(R_np_rigid - R_true).max(), "max_residual_rigid": res_np_rigid.max()},
         {"route": f"analyze --kabsch per pair: vertex + face + edge kernels, {threads} threads",
@@ -223,33 +250,32 @@ def run(out_dir):
     eigen = eigen_accuracy(rng)
 
     columns = ["route", "seconds_per_pair", "vertex_pairs_per_s", "speedup_vs_numpy",
-               "max_rot_err_vs_scipy", "max_rot_err_rigid", "max_residual_rigid"]
-    with open(out_dir / "kabsch.csv", "w", newline="") as fh:
-        writer = csv.writer(fh)
-        writer.writerow(["table", "key", "value"])
-        for table, items in (("throughput", rows), ("thin_rings", thin), ("eigen", eigen)):
-            for k, row in enumerate(items):
-                for key, value in row.items():
-                    writer.writerow([f"{table}[{k}]", key, value])
-        for key, value in agreement.items():
-            writer.writerow(["agreement", key, value])
+               "max_rot_err_vs_longdouble", "max_rot_err_vs_scipy", "max_rot_err_rigid",
+               "max_residual_rigid"]
+    thin_columns = ["width_ratio", "unflagged", "horn_jacobi_max_err", "numpy_svd_max_err"]
+    eigen_columns = ["matrix", "count", "max_residual_rel", "max_orthogonality", "max_eigenvalue_err_rel",
+                     "sweeps_per_batch_of_64"]
+    table = ([{"table": "throughput", **r} for r in rows] + [{"table": "thin_rings", **r} for r in thin]
+             + [{"table": "eigen", **r} for r in eigen] + [{"table": "agreement", **agreement}])
+    write_csv(out_dir / "kabsch.csv", table,
+              ["table", *columns, *thin_columns, *eigen_columns, *agreement])
     md = [f"## 3D (Kabsch) variant\n\n{NX}×{NY} vertices ({n} vertices, {len(faces)} triangles), "
           f"{len(pairs)} pairs of a moving, stretching, bending wave; medians of {REPEAT} runs "
           f"(numpy route: 3); {threads} numba threads on {os.cpu_count()} CPUs. Rotation errors are "
-          "max |R − R_ref| over all entries and vertices.\n",
+          "max |R − R_ref| over all entries and vertices; the longdouble reference is Horn's method "
+          "with every step in extended precision.\n\n",
           markdown_table(rows, columns),
           f"\nclothtool against the numpy route on the first pair: angles differ by at most "
           f"{agreement['max_angle_diff']:.2g} rad, residuals by {agreement['max_residual_diff_rel']:.2g} "
           f"of the largest; {agreement['flagged_vertices']} vertices flagged.\n",
           "\nThin rings, rigidly moved (relative eigen-gap ≈ width², RING_TOL = 1e-4 flags the "
           "thinnest): rotation error against the exact rotation\n\n",
-          markdown_table(thin, ["width_ratio", "unflagged", "horn_jacobi_max_err", "numpy_svd_max_err"]),
+          markdown_table(thin, thin_columns),
           "\nJacobi eigen-solver (batched, 64 matrices in lockstep)\n\n",
-          markdown_table(eigen, ["matrix", "count", "max_residual_rel", "max_orthogonality",
-                                 "max_eigenvalue_err_rel", "sweeps_per_batch_of_64"])]
+          markdown_table(eigen, eigen_columns)]
     (out_dir / "kabsch.md").write_text("".join(md))
     print("".join(md))
 
 
 if __name__ == "__main__":
-    run(pathlib.Path(sys.argv[1] if len(sys.argv) > 1 else "bench-results"))
+    run(pathlib.Path("bench-results"))

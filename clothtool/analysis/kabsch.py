@@ -6,8 +6,9 @@ each set centred on its own mean, with reference points p and deformed points q:
     H = Σ p qᵀ,   rotation = argmin over proper rotations R of Σ‖R p − q‖²   (Kabsch 1976)
 
 The rotation is found as Horn's unit quaternion (Horn 1987, J. Opt. Soc. Am. A 4:629): the
-eigenvector of the largest eigenvalue of the symmetric 4×4 matrix N(H), computed with the
-batched Jacobi solver of :mod:`clothtool.analysis.symeig` (H is divided by √(Σ‖p‖² Σ‖q‖²) ≥ σ1+σ2+σ3
+eigenvector of the largest eigenvalue of the symmetric 4×4 matrix N(H); the eigenvalues come
+from the batched Jacobi solver of :mod:`clothtool.analysis.symeig`, the eigenvector from the
+adjugate of N − λI (H is divided by √(Σ‖p‖² Σ‖q‖²) ≥ σ1+σ2+σ3
 first, so that the tolerances are relative). The quaternion is a proper rotation by
 construction; in terms of the singular values σ1 ≥ σ2 ≥ σ3 of H and d = sign det H the
 eigenvalues of N are σ1+σ2+dσ3, σ1−σ2−dσ3, −σ1+σ2−dσ3, −σ1−σ2+dσ3, so the largest one is the
@@ -24,7 +25,7 @@ import numpy as np
 from numba import njit, prange
 
 from clothtool.analysis.deformation2d import DEGENERATE_TOL
-from clothtool.analysis.symeig import jacobi_eigh_batch, sort_descending
+from clothtool.analysis.symeig import adjugate_eigenvector4, jacobi_eigh_batch, sort_descending
 
 REF_DEGENERATE = 1  # flag bit 0: reference ring / triangle degenerate
 DEF_DEGENERATE = 2  # flag bit 1: deformed ring / triangle degenerate
@@ -64,10 +65,10 @@ def horn_matrix(h, scale, a, k):
 
 
 @njit(cache=True, error_model="numpy")
-def quaternion_rotation(a, v, k, rot):
-    """After Jacobi on Horn's matrix k: the rotation of its top eigenvector into ``rot`` (3×3).
-    Returns (gap, angle): the distance from the largest eigenvalue to the next one and the
-    rotation angle 2·atan2(‖q_xyz‖, |q_w|) ∈ [0, π]."""
+def top_quaternion(a, orig, k, b, q):
+    """After eigenvalue-only Jacobi on Horn's matrix k (``orig`` holds it unchanged): the unit
+    quaternion of the largest eigenvalue into ``q`` (4,), from adj(N − λI); ``b`` is 4×4 scratch.
+    Returns the gap from the largest eigenvalue to the next one."""
     top = 0
     for i in range(1, 4):
         if a[i, i, k] > a[top, top, k]:
@@ -76,9 +77,15 @@ def quaternion_rotation(a, v, k, rot):
     for i in range(4):
         if i != top and a[i, i, k] > second:
             second = a[i, i, k]
-    w, x, y, z = v[0, top, k], v[1, top, k], v[2, top, k], v[3, top, k]
-    inv = 1.0 / math.sqrt(w * w + x * x + y * y + z * z)
-    w, x, y, z = w * inv, x * inv, y * inv, z * inv
+    adjugate_eigenvector4(orig, k, a[top, top, k], b, q)
+    return a[top, top, k] - second
+
+
+@njit(cache=True, error_model="numpy")
+def quaternion_matrix(q, rot):
+    """The rotation matrix of the unit quaternion q = (w, x, y, z) into ``rot`` (3×3); returns
+    its angle 2·atan2(‖(x, y, z)‖, |w|) ∈ [0, π] (accurate near 0 and π, unlike arccos)."""
+    w, x, y, z = q[0], q[1], q[2], q[3]
     rot[0, 0] = 1.0 - 2.0 * (y * y + z * z)
     rot[0, 1] = 2.0 * (x * y - w * z)
     rot[0, 2] = 2.0 * (x * z + w * y)
@@ -88,7 +95,7 @@ def quaternion_rotation(a, v, k, rot):
     rot[2, 0] = 2.0 * (x * z - w * y)
     rot[2, 1] = 2.0 * (y * z + w * x)
     rot[2, 2] = 1.0 - 2.0 * (x * x + y * y)
-    return a[top, top, k] - second, 2.0 * math.atan2(math.sqrt(x * x + y * y + z * z), abs(w))
+    return 2.0 * math.atan2(math.sqrt(x * x + y * y + z * z), abs(w))
 
 
 @njit(cache=True, error_model="numpy")
@@ -200,20 +207,23 @@ def vertex_fields(x_ref, x_def, offsets, neighbours, rotation, angle, residual, 
         first = c * CHUNK
         m = min(n, first + CHUNK) - first
         h = np.empty((3, 3))
+        b = np.empty((4, 4))
+        q = np.empty(4)
         rot = np.empty((3, 3))
         a = np.empty((4, 4, m))
-        v = np.empty((4, 4, m))
         mean = np.empty((m, 6))
         flag = np.empty(m, np.uint8)
         for k in range(m):
             flag[k] = _ring_matrix(first + k, x_ref, x_def, offsets, neighbours, h, a, k, mean[k])
-        jacobi_eigh_batch(a, v)
+        orig = a.copy()
+        jacobi_eigh_batch(a, np.empty((0, 4, m)))
         for k in range(m):
             i = first + k
             ang = res = np.nan
             rot[:, :] = np.nan
             if flag[k] == 0:
-                gap, ang = quaternion_rotation(a, v, k, rot)
+                gap = top_quaternion(a, orig, k, b, q)
+                ang = quaternion_matrix(q, rot)
                 if gap <= GAP_TOL:
                     flag[k] = AMBIGUOUS
                     ang = np.nan
@@ -315,8 +325,9 @@ def face_fields3(x_ref, x_def, faces, tol, F3, R3, U3, stretch3, directions3, fl
         u = np.empty((3, 3))
         values = np.empty(3)
         vectors = np.empty((3, 3))
+        b = np.empty((4, 4))
+        q = np.empty(4)
         a4 = np.zeros((4, 4, m))
-        v4 = np.empty((4, 4, m))
         a3 = np.zeros((3, 3, m))
         v3 = np.empty((3, 3, m))
         flag = np.empty(m, np.uint8)
@@ -331,8 +342,9 @@ def face_fields3(x_ref, x_def, faces, tol, F3, R3, U3, stretch3, directions3, fl
                     for j in range(3):
                         norm += h[i, j] * h[i, j]
                 horn_matrix(h, math.sqrt(norm), a4, k)
+        orig = a4.copy()
         if polar:
-            jacobi_eigh_batch(a4, v4)
+            jacobi_eigh_batch(a4, np.empty((0, 4, m)))
         for k in range(m):
             t = first + k
             if flags.shape[0]:
@@ -344,7 +356,8 @@ def face_fields3(x_ref, x_def, faces, tol, F3, R3, U3, stretch3, directions3, fl
             r[:, :] = np.nan
             u[:, :] = np.nan
             if flag[k] == 0:
-                quaternion_rotation(a4, v4, k, r)
+                top_quaternion(a4, orig, k, b, q)
+                quaternion_matrix(q, r)
                 for i in range(3):
                     for j in range(3):
                         u[i, j] = r[0, i] * f[k, 0, j] + r[1, i] * f[k, 1, j] + r[2, i] * f[k, 2, j]

@@ -30,16 +30,19 @@ _TINY = 1e-150  # u > 0 even when a_pq = 0 and a_pp = a_qq; (1e-150)² is still 
 def jacobi_eigh_batch(a, v):
     """Diagonalise the symmetric matrices ``a[:, :, k]`` (n, n, B, C-contiguous) in place:
     afterwards ``a[i, i, k]`` are the eigenvalues (unsorted), the columns ``v[:, j, k]`` the
-    orthonormal eigenvectors and the off-diagonal entries are undefined. Returns the number of sweeps. Matrices with NaN stop the iteration for
+    orthonormal eigenvectors and the off-diagonal entries are undefined. An empty ``v``
+    (shape (0, …)) skips the eigenvectors. Returns the number of sweeps. Matrices with NaN stop the iteration for
     themselves only (their results are NaN)."""
     n, _, m = a.shape
     fro2 = np.zeros(m)
     off = np.empty(m)
     c = np.empty(m)
     s = np.empty(m)
+    vectors = v.shape[0] > 0
     for i in range(n):
         for j in range(n):
-            v[i, j, :] = 1.0 if i == j else 0.0
+            if vectors:
+                v[i, j, :] = 1.0 if i == j else 0.0
             for k in range(m):
                 fro2[k] += a[i, j, k] * a[i, j, k]
     for sweep in range(MAX_SWEEPS):
@@ -78,6 +81,8 @@ def jacobi_eigh_batch(a, v):
                             arq = a[i2, j2, k]
                             a[i1, j1, k] = c[k] * arp - s[k] * arq
                             a[i2, j2, k] = s[k] * arp + c[k] * arq
+                    if not vectors:
+                        continue
                     for k in range(m):
                         vrp = v[r, p, k]
                         vrq = v[r, q, k]
@@ -99,3 +104,38 @@ def sort_descending(a, v, k, values, vectors):
         values[rank] = a[i, i, k]
         for r in range(n):
             vectors[rank, r] = v[r, i, k]
+
+
+@njit(cache=True, error_model="numpy")
+def _minor3(b, skip_row, skip_col):
+    """Determinant of the 4×4 ``b`` without row ``skip_row`` and column ``skip_col``."""
+    r0, r1, r2 = int(skip_row == 0), 1 + int(skip_row <= 1), 2 + int(skip_row <= 2)
+    c0, c1, c2 = int(skip_col == 0), 1 + int(skip_col <= 1), 2 + int(skip_col <= 2)
+    return (b[r0, c0] * (b[r1, c1] * b[r2, c2] - b[r1, c2] * b[r2, c1])
+            - b[r0, c1] * (b[r1, c0] * b[r2, c2] - b[r1, c2] * b[r2, c0])
+            + b[r0, c2] * (b[r1, c0] * b[r2, c1] - b[r1, c1] * b[r2, c0]))
+
+
+@njit(cache=True, error_model="numpy")
+def adjugate_eigenvector4(a, k, lam, b, x):
+    """Unit eigenvector of the symmetric 4×4 matrix ``a[:, :, k]`` for its simple eigenvalue
+    ``lam``, into ``x`` (4,); ``b`` is 4×4 scratch. B = A − λI has rank 3, so every column of
+    adj(B) = Σ_i Π_(j≠i)(λ_j − λ) v_i v_iᵀ is a multiple of v; the column with the largest
+    diagonal cofactor (∝ v_i²) is taken. Its error is about ε‖A‖/gap, as for Jacobi vectors."""
+    for i in range(4):
+        for j in range(4):
+            b[i, j] = a[i, j, k] - (lam if i == j else 0.0)
+    col = 0
+    best = -1.0
+    for i in range(4):
+        c = abs(_minor3(b, i, i))
+        if c > best:
+            best = c
+            col = i
+    norm = 0.0
+    for i in range(4):
+        x[i] = _minor3(b, i, col) * (1.0 if (i + col) % 2 == 0 else -1.0)
+        norm += x[i] * x[i]
+    inv = 1.0 / math.sqrt(norm)
+    for i in range(4):
+        x[i] *= inv
