@@ -15,9 +15,10 @@ from clothtool.analysis.kabsch import (
     NONFINITE,
     REF_DEGENERATE,
     face_gradients3,
+    horn_matrix,
     vertex_rotations,
 )
-from clothtool.analysis.symeig import jacobi_eigh_batch, sort_descending
+from clothtool.analysis.symeig import adjugate_eigenvector4, jacobi_eigh_batch, sort_descending
 from clothtool.analysis.topology import interior_edges, one_ring
 
 HYP = settings(deadline=None, max_examples=60, suppress_health_check=[HealthCheck.too_slow])
@@ -130,6 +131,31 @@ def test_jacobi_batch_matches_numpy_eigh(seed, n, batch):
         np.testing.assert_allclose(values, np.linalg.eigvalsh(A[k])[::-1], rtol=0, atol=8e-15 * scale)
         np.testing.assert_allclose(vectors @ vectors.T, np.eye(n), atol=4e-15)
         np.testing.assert_allclose(vectors @ A[k], values[:, None] * vectors, atol=8e-15 * scale)
+
+
+@HYP
+@given(st.integers(0, 2**32 - 1), st.sampled_from(["random", "half_turn", "identity"]))
+def test_adjugate_eigenvector_of_horn_matrices(seed, case):
+    """Top eigenvector of Horn's N(H) from adj(N − λI), with λ from eigenvalue-only Jacobi, against
+    numpy; half turns have w = 0 (the first adjugate column vanishes), near-identity w ≈ 1."""
+    rng = np.random.default_rng(seed)
+    p = rng.normal(size=(8, 3))
+    axis = rng.normal(size=3)
+    R = {"random": Rotation.random(random_state=rng).as_matrix(),
+         "half_turn": Rotation.from_rotvec(np.pi * axis / np.linalg.norm(axis)).as_matrix(),
+         "identity": np.eye(3)}[case]
+    q = (p + (0.1 if case == "random" else 0.0) * rng.normal(size=p.shape)) @ R.T
+    a = np.empty((4, 4, 1))
+    horn_matrix((p - p.mean(0)).T @ (q - q.mean(0)), 1.0, a, 0)
+    N = a[:, :, 0].copy()
+    jacobi_eigh_batch(a, np.empty((0, 4, 1)))
+    lam = np.diag(a[:, :, 0]).max()
+    x, b = np.empty(4), np.empty((4, 4))
+    adjugate_eigenvector4(N[:, :, None].copy(), 0, lam, b, x)
+    w, v = np.linalg.eigh(N)
+    np.testing.assert_allclose(lam, w[-1], atol=1e-14 * np.abs(w).max())
+    np.testing.assert_allclose(abs(x @ v[:, -1]), 1.0, atol=1e-14)
+    np.testing.assert_allclose(np.linalg.norm(x), 1.0, atol=1e-15)
 
 
 # ---------------------------------------------------------------- vertex rotations
