@@ -88,13 +88,15 @@ class NumpyRoute:
 
 
 def median_seconds(fn, repeat=REPEAT):
+    """Median wall time and median process CPU time (all threads) of ``fn()``."""
     fn()  # warm-up (compilation, caches)
-    times = []
+    wall, cpu = [], []
     for _ in range(repeat):
-        started = time.perf_counter()
+        started, cpu_started = time.perf_counter(), time.process_time()
         fn()
-        times.append(time.perf_counter() - started)
-    return statistics.median(times)
+        wall.append(time.perf_counter() - started)
+        cpu.append(time.process_time() - cpu_started)
+    return statistics.median(wall), statistics.median(cpu)
 
 
 def scipy_reference(x_ref, x_def, offsets, neighbours):
@@ -205,15 +207,16 @@ def run(out_dir):
         for x_ref, x_def in pairs:
             numpy_route(x_ref, x_def)
 
-    t_ours = median_seconds(ours)
+    load = os.getloadavg()[0]
+    t_ours, c_ours = median_seconds(ours)
     numba.set_num_threads(1)
-    t_ours_1 = median_seconds(ours)
+    t_ours_1, c_ours_1 = median_seconds(ours)
     numba.set_num_threads(threads)
-    t_numpy = median_seconds(theirs, repeat=3)
+    t_numpy, c_numpy = median_seconds(theirs, repeat=3)
 
     variant = Variant3D(faces, n, KABSCH_FIELDS + ("flags",), DEGENERATE_TOL)
     buffers = variant.buffers(np.float32)
-    t_variant = median_seconds(lambda: [variant.compute(x_ref, x_def, buffers) for x_ref, x_def in pairs])
+    t_variant, c_variant = median_seconds(lambda: [variant.compute(x_ref, x_def, buffers) for x_ref, x_def in pairs])
 
     # accuracy on the deformation (first pair) and on a rigid motion
     x_ref, x_def = pairs[0]
@@ -230,18 +233,21 @@ def run(out_dir):
     rows = [
         {"route": f"clothtool vertex kernel, {threads} threads", "seconds_per_pair": t_ours / len(pairs),
          "vertex_pairs_per_s": vp / t_ours, "speedup_vs_numpy": t_numpy / t_ours,
+         "vertex_pairs_per_cpu_s": vp / c_ours,
          "max_rot_err_vs_longdouble": float(np.abs(R_ours - extended).max()),
          "max_rot_err_vs_scipy": np.abs(R_ours - reference).max(),
          "max_rot_err_rigid": np.abs(R_ours_rigid - R_true).max(), "max_residual_rigid": res_ours_rigid.max()},
         {"route": "clothtool vertex kernel, 1 thread", "seconds_per_pair": t_ours_1 / len(pairs),
-         "vertex_pairs_per_s": vp / t_ours_1, "speedup_vs_numpy": t_numpy / t_ours_1},
+         "vertex_pairs_per_s": vp / t_ours_1, "speedup_vs_numpy": t_numpy / t_ours_1,
+         "vertex_pairs_per_cpu_s": vp / c_ours_1},
         {"route": "numpy route (reduceat + batched np.linalg.svd + det fix)", "seconds_per_pair": t_numpy / len(pairs),
-         "vertex_pairs_per_s": vp / t_numpy, "speedup_vs_numpy": 1.0,
+         "vertex_pairs_per_s": vp / t_numpy, "speedup_vs_numpy": 1.0, "vertex_pairs_per_cpu_s": vp / c_numpy,
          "max_rot_err_vs_longdouble": float(np.abs(R_np - extended).max()),
          "max_rot_err_vs_scipy": np.abs(R_np - reference).max(),
          "max_rot_err_rigid": np.abs(R_np_rigid - R_true).max(), "max_residual_rigid": res_np_rigid.max()},
         {"route": f"analyze --kabsch per pair: vertex + face + edge kernels, {threads} threads",
-         "seconds_per_pair": t_variant / len(pairs), "vertex_pairs_per_s": vp / t_variant},
+         "seconds_per_pair": t_variant / len(pairs), "vertex_pairs_per_s": vp / t_variant,
+         "vertex_pairs_per_cpu_s": vp / c_variant},
     ]
     agreement = {"max_angle_diff": np.abs(angle_ours - angle_np).max(),
                  "max_residual_diff_rel": (np.abs(res_ours - res_np) / res_np.max()).max(),
@@ -249,7 +255,7 @@ def run(out_dir):
     thin = thin_ring_errors(rng)
     eigen = eigen_accuracy(rng)
 
-    columns = ["route", "seconds_per_pair", "vertex_pairs_per_s", "speedup_vs_numpy",
+    columns = ["route", "seconds_per_pair", "vertex_pairs_per_s", "speedup_vs_numpy", "vertex_pairs_per_cpu_s",
                "max_rot_err_vs_longdouble", "max_rot_err_vs_scipy", "max_rot_err_rigid",
                "max_residual_rigid"]
     thin_columns = ["width_ratio", "unflagged", "horn_jacobi_max_err", "numpy_svd_max_err"]
@@ -261,7 +267,9 @@ def run(out_dir):
               ["table", *columns, *thin_columns, *eigen_columns, *agreement])
     md = [f"## 3D (Kabsch) variant\n\n{NX}×{NY} vertices ({n} vertices, {len(faces)} triangles), "
           f"{len(pairs)} pairs of a moving, stretching, bending wave; medians of {REPEAT} runs "
-          f"(numpy route: 3); {threads} numba threads on {os.cpu_count()} CPUs. Rotation errors are "
+          f"(numpy route: 3); {threads} numba threads on {os.cpu_count()} CPUs, load average "
+          f"{load:.1f} at the start (other work on the machine slows the wall-clock figures; "
+          "vertex_pairs_per_cpu_s counts this process's CPU time, all threads). Rotation errors are "
           "max |R − R_ref| over all entries and vertices; the longdouble reference is Horn's method "
           "with every step in extended precision.\n\n",
           markdown_table(rows, columns),
