@@ -9,7 +9,8 @@ from scipy.spatial.transform import Rotation
 
 import clothtool
 from clothtool.analysis.dihedral import dihedral_change
-from clothtool.analysis.kabsch import face_gradients3, vertex_rotations
+from clothtool.analysis.face3d import face_gradients3
+from clothtool.analysis.kabsch import vertex_rotations
 from clothtool.analysis.topology import interior_edges, one_ring
 from clothtool.cli import main
 from clothtool.errors import InputError

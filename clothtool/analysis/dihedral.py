@@ -17,8 +17,8 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from clothtool.analysis.deformation2d import DEGENERATE_TOL
-from clothtool.analysis.kabsch import DEF_DEGENERATE, NONFINITE, REF_DEGENERATE
+from clothtool.analysis.deformation2d import (DEGENERATE_TOL, FLAG_DEFORMED_DEGENERATE, FLAG_NONFINITE,
+                                              FLAG_REFERENCE_DEGENERATE)
 
 
 @njit(cache=True, error_model="numpy")
@@ -47,9 +47,10 @@ def _bend(x, i, j, k0, k1, tol):
 @njit(cache=True, parallel=True, error_model="numpy")
 def dihedral_fields(x_ref, x_def, edges, opposite, tol, change, flags):
     """Fill the signed dihedral-angle change θ_def − θ_ref (radians, wrapped to (−π, π]) per edge
-    into ``change`` (E,) and ``flags`` (E,) uint8: REF_DEGENERATE / DEF_DEGENERATE when either
-    triangle of the edge is degenerate (‖e1 × e2‖ ≤ tol·(longest edge)², as in the 2D analysis),
-    NONFINITE; flagged changes are NaN. Each output is full size or empty (then not written).
+    into ``change`` (E,) and ``flags`` (E,) uint8: bit 0 / bit 1 when a triangle of the edge is
+    degenerate in the reference / deformed frame (‖e1 × e2‖ ≤ tol·(longest edge)², as in the 2D
+    analysis), bit 2 non-finite input; flagged changes are NaN. Each output is full size or empty
+    (then not written).
     """
     for t in prange(edges.shape[0]):
         i, j, k0, k1 = edges[t, 0], edges[t, 1], opposite[t, 0], opposite[t, 1]
@@ -58,11 +59,12 @@ def dihedral_fields(x_ref, x_def, edges, opposite, tol, change, flags):
             for k in range(3):
                 finite = finite and np.isfinite(x_ref[v, k]) and np.isfinite(x_def[v, k])
         d = np.nan
-        f = NONFINITE
+        f = FLAG_NONFINITE
         if finite:
             theta_ref, ref_bad = _bend(x_ref, i, j, k0, k1, tol)
             theta_def, def_bad = _bend(x_def, i, j, k0, k1, tol)
-            f = (REF_DEGENERATE if ref_bad else 0) | (DEF_DEGENERATE if def_bad else 0)
+            f = ((FLAG_REFERENCE_DEGENERATE if ref_bad else 0)
+                 | (FLAG_DEFORMED_DEGENERATE if def_bad else 0))
             if f == 0:
                 d = theta_def - theta_ref
                 if d > math.pi:

@@ -14,9 +14,6 @@ construction; in terms of the singular values σ1 ≥ σ2 ≥ σ3 of H and d = s
 eigenvalues of N are σ1+σ2+dσ3, σ1−σ2−dσ3, −σ1+σ2−dσ3, −σ1−σ2+dσ3, so the largest one is the
 Kabsch optimum *with* the reflection fix on the smallest singular direction, and planar rings
 (σ3 = 0) need no special case. The rotation is determined iff the gap 2(σ2 + dσ3) is positive.
-
-Per face, the full-rank 3×3 deformation gradient F3 = [e1' e2' n'] [e1 e2 n]⁻¹ and its polar
-split F3 = R3·U3 (R3 is again Horn's rotation, for H = F3ᵀ; U3 = R3ᵀF3).
 """
 
 import math
@@ -24,13 +21,13 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from clothtool.analysis.deformation2d import DEGENERATE_TOL
-from clothtool.analysis.symeig import adjugate_eigenvector4, jacobi_eigh_batch, sort_descending
+from clothtool import numba_setup  # noqa: F401  (threading layer, before the first kernel)
+from clothtool.analysis.symeig import adjugate_eigenvector4, jacobi_eigvals_batch
 
-REF_DEGENERATE = 1  # flag bit 0: reference ring / triangle degenerate
-DEF_DEGENERATE = 2  # flag bit 1: deformed ring / triangle degenerate
+REF_DEGENERATE = 1  # flag bit 0: reference ring degenerate
+DEF_DEGENERATE = 2  # flag bit 1: deformed ring degenerate
 NONFINITE = 4  # flag bit 2: non-finite input coordinates
-AMBIGUOUS = 8  # flag bit 3 (vertices): the best rotation is not unique
+AMBIGUOUS = 8  # flag bit 3: the best rotation is not unique
 
 RING_TOL = 1e-4
 """A ring is degenerate (coincident or collinear points) when I₂ ≤ RING_TOL²·(tr A)², where A = Σ p pᵀ
@@ -42,7 +39,7 @@ GAP_TOL·√(Σ‖p‖² Σ‖q‖²). For a rigid motion the relative gap is �
 so GAP_TOL = RING_TOL². The rotation error grows like ε/(relative gap): ~1e-14 on ordinary rings,
 a few 1e-8 at the limit (measured in benchmarks/bench_kabsch.py)."""
 
-CHUNK = 64  # vertices / faces per batch: one parallel work item, solved in lockstep by Jacobi
+CHUNK = 64  # vertices per batch: one parallel work item, solved in lockstep by Jacobi
 
 
 @njit(cache=True, error_model="numpy")
@@ -67,7 +64,7 @@ def horn_matrix(h, scale, a, k):
 
 @njit(cache=True, error_model="numpy")
 def top_quaternion(a, orig, k, b, q):
-    """After eigenvalue-only Jacobi on Horn's matrix k (``orig`` holds it unchanged): the unit
+    """After Jacobi (eigenvalues) on Horn's matrix k (``orig`` holds it unchanged): the unit
     quaternion of the largest eigenvalue into ``q`` (4,), from adj(N − λI); ``b`` is 4×4 scratch.
     Returns the gap from the largest eigenvalue to the next one."""
     top = 0
@@ -217,7 +214,7 @@ def vertex_fields(x_ref, x_def, offsets, neighbours, rotation, angle, residual, 
         for k in range(m):
             flag[k] = _ring_matrix(first + k, x_ref, x_def, offsets, neighbours, h, a, k, mean[k])
         orig = a.copy()
-        jacobi_eigh_batch(a, np.empty((0, 4, m)))
+        jacobi_eigvals_batch(a)
         for k in range(m):
             i = first + k
             ang = res = np.nan
@@ -247,149 +244,4 @@ def vertex_rotations(x_ref, x_def, offsets, neighbours):
     out = (np.empty((n, 3, 3)), np.empty(n), np.empty(n), np.empty(n, np.uint8))
     vertex_fields(np.ascontiguousarray(x_ref, np.float64), np.ascontiguousarray(x_def, np.float64),
                   offsets, neighbours, *out)
-    return out
-
-
-@njit(cache=True, error_model="numpy")
-def triangle_frame(x, i0, i1, i2, tol, e):
-    """Edges e1 = x1 − x0, e2 = x2 − x0 and unit normal n of a triangle into the rows of ``e``
-    (3×3). Returns (‖e1 × e2‖, flag): flag is NONFINITE, else 1 when degenerate
-    (‖e1 × e2‖ ≤ tol·(longest edge)², the criterion of the 2D analysis), else 0."""
-    for k in range(3):
-        e[0, k] = x[i1, k] - x[i0, k]
-        e[1, k] = x[i2, k] - x[i0, k]
-    c0 = e[0, 1] * e[1, 2] - e[0, 2] * e[1, 1]
-    c1 = e[0, 2] * e[1, 0] - e[0, 0] * e[1, 2]
-    c2 = e[0, 0] * e[1, 1] - e[0, 1] * e[1, 0]
-    dbl_area = math.sqrt(c0 * c0 + c1 * c1 + c2 * c2)
-    l1 = e[0, 0] ** 2 + e[0, 1] ** 2 + e[0, 2] ** 2
-    l2 = e[1, 0] ** 2 + e[1, 1] ** 2 + e[1, 2] ** 2
-    l3 = (e[1, 0] - e[0, 0]) ** 2 + (e[1, 1] - e[0, 1]) ** 2 + (e[1, 2] - e[0, 2]) ** 2
-    if not np.isfinite(dbl_area + l1 + l2 + l3):
-        return dbl_area, NONFINITE
-    if dbl_area <= tol * max(l1, l2, l3):
-        return dbl_area, 1
-    e[2, 0], e[2, 1], e[2, 2] = c0 / dbl_area, c1 / dbl_area, c2 / dbl_area
-    return dbl_area, 0
-
-
-@njit(cache=True, error_model="numpy")
-def _face_gradient(x_ref, x_def, tri, tol, er, ed, f3):
-    """F3 = [e1' e2' n'] [e1 e2 n]⁻¹ of one triangle into ``f3``; returns the triangle's flags."""
-    d, ref_flag = triangle_frame(x_ref, tri[0], tri[1], tri[2], tol, er)
-    _, def_flag = triangle_frame(x_def, tri[0], tri[1], tri[2], tol, ed)
-    flags = (ref_flag & NONFINITE) | (def_flag & NONFINITE)
-    flags |= (REF_DEGENERATE if ref_flag == 1 else 0) | (DEF_DEGENERATE if def_flag == 1 else 0)
-    if flags:
-        return flags
-    # [e1 e2 n]⁻¹ has the rows (e2 × n)/d, (n × e1)/d, n with d = ‖e1 × e2‖ = det [e1 e2 n]
-    n0, n1, n2 = er[2, 0], er[2, 1], er[2, 2]
-    g00 = (er[1, 1] * n2 - er[1, 2] * n1) / d
-    g01 = (er[1, 2] * n0 - er[1, 0] * n2) / d
-    g02 = (er[1, 0] * n1 - er[1, 1] * n0) / d
-    g10 = (n1 * er[0, 2] - n2 * er[0, 1]) / d
-    g11 = (n2 * er[0, 0] - n0 * er[0, 2]) / d
-    g12 = (n0 * er[0, 1] - n1 * er[0, 0]) / d
-    for r in range(3):
-        f3[r, 0] = ed[0, r] * g00 + ed[1, r] * g10 + ed[2, r] * n0
-        f3[r, 1] = ed[0, r] * g01 + ed[1, r] * g11 + ed[2, r] * n1
-        f3[r, 2] = ed[0, r] * g02 + ed[1, r] * g12 + ed[2, r] * n2
-    return 0
-
-
-@njit(cache=True, parallel=True, error_model="numpy")
-def face_fields3(x_ref, x_def, faces, tol, F3, R3, U3, stretch3, directions3, flags):
-    """Per-triangle 3×3 deformation gradient that also maps the reference unit normal n to the
-    deformed n': F3 = [e1' e2' n'] [e1 e2 n]⁻¹, with F3 = R3·U3 (R3 proper, U3 symmetric
-    positive definite, both in the reference configuration).
-
-    R3 is Horn's rotation for H = F3ᵀ (the polar rotation, since det F3 = area'/area > 0), and
-    U3 = R3ᵀF3 (symmetrised); stretches and directions are its Jacobi eigen-pairs.
-    Fills ``F3``, ``R3``, ``U3`` (M, 3, 3), ``stretch3`` (M, 3) the eigenvalues of U3 in
-    descending order, ``directions3`` (M, 3, 3) the unit eigenvectors (row k belongs to
-    stretch3[k], sign free) and ``flags`` (M,) uint8: REF_DEGENERATE, DEF_DEGENERATE, NONFINITE
-    with the 2D analysis' criterion and ``tol``; flagged triangles are NaN. Each output is full
-    size or empty (then it is neither computed nor written). Since F3ᵀ n' = n, one stretch is
-    exactly 1 with direction n; the other two are the in-plane (2D) principal stretches.
-    """
-    n = faces.shape[0]
-    polar = R3.shape[0] or U3.shape[0] or stretch3.shape[0] or directions3.shape[0]
-    principal = stretch3.shape[0] or directions3.shape[0]
-    for c in prange((n + CHUNK - 1) // CHUNK):
-        first = c * CHUNK
-        m = min(n, first + CHUNK) - first
-        er = np.empty((3, 3))
-        ed = np.empty((3, 3))
-        h = np.empty((3, 3))
-        f = np.empty((m, 3, 3))
-        r = np.empty((3, 3))
-        u = np.empty((3, 3))
-        values = np.empty(3)
-        vectors = np.empty((3, 3))
-        b = np.empty((4, 4))
-        q = np.empty(4)
-        a4 = np.zeros((4, 4, m))
-        a3 = np.zeros((3, 3, m))
-        v3 = np.empty((3, 3, m))
-        flag = np.empty(m, np.uint8)
-        for k in range(m):
-            flag[k] = _face_gradient(x_ref, x_def, faces[first + k], tol, er, ed, f[k])
-            if flag[k]:
-                f[k] = np.nan
-            elif polar:
-                h[:, :] = f[k].T
-                norm = 0.0
-                for i in range(3):
-                    for j in range(3):
-                        norm += h[i, j] * h[i, j]
-                horn_matrix(h, math.sqrt(norm), a4, k)
-        orig = a4.copy()
-        if polar:
-            jacobi_eigh_batch(a4, np.empty((0, 4, m)))
-        for k in range(m):
-            t = first + k
-            if flags.shape[0]:
-                flags[t] = flag[k]
-            if F3.shape[0]:
-                F3[t] = f[k]
-            if not polar:
-                continue
-            r[:, :] = np.nan
-            u[:, :] = np.nan
-            if flag[k] == 0:
-                top_quaternion(a4, orig, k, b, q)
-                quaternion_matrix(q, r)
-                for i in range(3):
-                    for j in range(3):
-                        u[i, j] = r[0, i] * f[k, 0, j] + r[1, i] * f[k, 1, j] + r[2, i] * f[k, 2, j]
-                for i in range(3):
-                    for j in range(i):
-                        u[i, j] = u[j, i] = 0.5 * (u[i, j] + u[j, i])
-                a3[:, :, k] = u
-            if R3.shape[0]:
-                R3[t] = r
-            if U3.shape[0]:
-                U3[t] = u
-        if not principal:
-            continue
-        jacobi_eigh_batch(a3, v3)
-        for k in range(m):
-            t = first + k
-            values[:] = np.nan
-            vectors[:, :] = np.nan
-            if flag[k] == 0:
-                sort_descending(a3, v3, k, values, vectors)
-            if stretch3.shape[0]:
-                stretch3[t] = values
-            if directions3.shape[0]:
-                directions3[t] = vectors
-
-
-def face_gradients3(x_ref, x_def, faces, tol=DEGENERATE_TOL):
-    """:func:`face_fields3` into new float64 arrays: (F3, R3, U3, stretch3, directions3, flags)."""
-    m = len(faces)
-    out = (np.empty((m, 3, 3)), np.empty((m, 3, 3)), np.empty((m, 3, 3)), np.empty((m, 3)),
-           np.empty((m, 3, 3)), np.empty(m, np.uint8))
-    face_fields3(np.ascontiguousarray(x_ref, np.float64), np.ascontiguousarray(x_def, np.float64),
-                 np.ascontiguousarray(faces, np.int64), tol, *out)
     return out

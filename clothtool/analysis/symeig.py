@@ -1,4 +1,5 @@
-"""Cyclic Jacobi eigen-solver for batches of small symmetric matrices (3×3, 4×4), numba, float64.
+"""Eigen-pairs of small symmetric matrices, numba, float64: cyclic Jacobi for the eigenvalues of a
+batch, the adjugate for the eigenvector of one simple eigenvalue.
 
 Each step zeroes one off-diagonal entry a_pq with a plane rotation by the smaller angle φ with
 tan φ = t (Rutishauser's form, Press et al., *Numerical Recipes*, 3rd ed., §11.1):
@@ -10,10 +11,11 @@ evaluated with one division, 1/(u·w), and no branch (u gets 1e-150 added so tha
 gives c = 1, s = 0; the matrices are expected scaled to about unit norm). Only the upper triangle
 is updated. The B matrices of a batch are rotated in lockstep along the last axis so that the
 compiler vectorises the rotations across matrices; sweeps repeat until, in every matrix, the
-off-diagonal mass is below (2⁻⁵³)² of its Frobenius norm² (4–6 sweeps; convergence is
-quadratic). Jacobi is used because its eigenvectors are accurate to about ε‖A‖/gap (Demmel &
-Veselić 1992), better than the closed-form (trigonometric) 3×3 solution near repeated
-eigenvalues.
+off-diagonal mass is below (2⁻⁵³)² of its Frobenius norm² (4–6 sweeps for 4×4; convergence is
+quadratic), so the eigenvalues are accurate to a few ε‖A‖. Eigenvectors are not accumulated:
+for the one that is needed, :func:`adjugate_eigenvector4` takes a column of adj(A − λI), accurate
+to about ε‖A‖/gap (the perturbation bound that Jacobi vectors also meet) at a fraction of the
+cost.
 """
 
 import math
@@ -27,22 +29,18 @@ _TINY = 1e-150  # u > 0 even when a_pq = 0 and a_pp = a_qq; (1e-150)² is still 
 
 
 @njit(cache=True, error_model="numpy")
-def jacobi_eigh_batch(a, v):
-    """Diagonalise the symmetric matrices ``a[:, :, k]`` (n, n, B, C-contiguous) in place:
-    afterwards ``a[i, i, k]`` are the eigenvalues (unsorted), the columns ``v[:, j, k]`` the
-    orthonormal eigenvectors and the off-diagonal entries are undefined. An empty ``v``
-    (shape (0, …)) skips the eigenvectors. Returns the number of sweeps. Matrices with NaN stop the iteration for
-    themselves only (their results are NaN)."""
+def jacobi_eigvals_batch(a):
+    """Eigenvalues of the symmetric matrices ``a[:, :, k]`` (n, n, B, C-contiguous), in place:
+    afterwards ``a[i, i, k]`` are the eigenvalues (unsorted); the off-diagonal entries are
+    undefined. Returns the number of sweeps. A matrix with NaN stops the iteration for itself
+    only (its results are NaN)."""
     n, _, m = a.shape
     fro2 = np.zeros(m)
     off = np.empty(m)
     c = np.empty(m)
     s = np.empty(m)
-    vectors = v.shape[0] > 0
     for i in range(n):
         for j in range(n):
-            if vectors:
-                v[i, j, :] = 1.0 if i == j else 0.0
             for k in range(m):
                 fro2[k] += a[i, j, k] * a[i, j, k]
     for sweep in range(MAX_SWEEPS):
@@ -81,29 +79,7 @@ def jacobi_eigh_batch(a, v):
                             arq = a[i2, j2, k]
                             a[i1, j1, k] = c[k] * arp - s[k] * arq
                             a[i2, j2, k] = s[k] * arp + c[k] * arq
-                    if not vectors:
-                        continue
-                    for k in range(m):
-                        vrp = v[r, p, k]
-                        vrq = v[r, q, k]
-                        v[r, p, k] = c[k] * vrp - s[k] * vrq
-                        v[r, q, k] = s[k] * vrp + c[k] * vrq
     return MAX_SWEEPS
-
-
-@njit(cache=True, error_model="numpy")
-def sort_descending(a, v, k, values, vectors):
-    """After :func:`jacobi_eigh_batch`: the eigenvalues of matrix k into ``values`` in descending
-    order and the matching eigenvectors into the rows of ``vectors`` (row i belongs to values[i])."""
-    n = a.shape[0]
-    for i in range(n):
-        rank = 0
-        for j in range(n):
-            if a[j, j, k] > a[i, i, k] or (a[j, j, k] == a[i, i, k] and j < i):
-                rank += 1
-        values[rank] = a[i, i, k]
-        for r in range(n):
-            vectors[rank, r] = v[r, i, k]
 
 
 @njit(cache=True, error_model="numpy")

@@ -15,7 +15,8 @@ are those of the F3 kernel. The one-ring and edge tables are built once per anal
 import numpy as np
 
 from clothtool.analysis.dihedral import dihedral_fields
-from clothtool.analysis.kabsch import face_fields3, vertex_fields
+from clothtool.analysis.face3d import face_fields3
+from clothtool.analysis.kabsch import vertex_fields
 from clothtool.analysis.topology import interior_edges, one_ring
 from clothtool.io.h5 import create_pair_dataset
 
