@@ -115,5 +115,46 @@ def analyze(inputs, output, reference, uv_scale, fields, dtype, compression, qui
         click.echo(summary.describe())
 
 
+SIMULATE_EPILOG = """\b
+Examples:
+  clothtool simulate sample_data/hanging_sheet.yaml
+      frames and stats.csv into the config's output.dir
+  clothtool simulate sheet.yaml -o runs/stiff --set material.stretch=1e5
+      another output folder (relative to the current folder), one key changed
+
+\b
+Output: DIR/frame_00000.ply (initial state) ... one binary PLY per frame with
+the rest coordinates as s,t (analyze it with --reference uv), and DIR/stats.csv.
+Config keys and units: see the README, section Simulation.
+
+""" + EXIT_CODES_HELP
+
+
+@main.command(epilog=SIMULATE_EPILOG)
+@click.argument("config", type=click.Path(dir_okay=False))
+@click.option("-o", "--output", type=click.Path(file_okay=False),
+              help="Output folder, overriding output.dir (relative to the current folder).")
+@click.option("--set", "settings", multiple=True, metavar="KEY=VALUE",
+              help="Override one config key, e.g. --set material.stretch=1e5 (repeatable).")
+@click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary.")
+def simulate(config, output, settings, quiet):
+    """Simulate cloth with an implicit Baraff-Witkin solver; write PLY frames.
+
+    CONFIG is a YAML file (mesh, material, scene, solver, time, output).
+    """
+    from clothtool.errors import InputError
+    from clothtool.sim.api import simulate as run
+
+    overrides = {}
+    for item in settings:
+        key, sep, value = item.partition("=")
+        if not sep or not key:
+            raise InputError(f"--set {item!r}: expected KEY=VALUE, e.g. material.stretch=1e5")
+        overrides[key.strip()] = value
+    result = run(config, output_dir=output, overrides=overrides, progress=_progress_enabled(quiet))
+    if not quiet:
+        click.echo(result.describe())
+
+
 if __name__ == "__main__":  # pragma: no cover
     main()

@@ -27,12 +27,9 @@ its Hessian 2c w wᵀ ⊗ I₃ is constant and PSD.
 """
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
-
-@njit(cache=True)
-def _cross(a, b):
-    return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
+from clothtool.sim.vec3 import cross, dot, load, scale, sub
 
 
 @njit(cache=True)
@@ -43,30 +40,30 @@ def _skew(a):
 
 @njit(cache=True)
 def dihedral_angle(xi, xj, xk, xl):
-    nk = _cross(xj - xi, xk - xi)
-    nl = _cross(xi - xj, xl - xj)
-    e = xj - xi
-    sin_part = _cross(nk, nl) @ e / np.sqrt(e @ e)
-    return np.arctan2(sin_part, nk @ nl)
+    e = sub(xj, xi)
+    nk = cross(e, sub(xk, xi))
+    nl = cross(sub(xi, xj), sub(xl, xj))
+    return np.arctan2(dot(cross(nk, nl), e) / np.sqrt(dot(e, e)), dot(nk, nl))
 
 
 @njit(cache=True)
 def dihedral_angle_gradient(xi, xj, xk, xl, grad):
     """θ and ∇θ (12,), order (i, j, k, l)."""
-    e = xj - xi
-    ll = e @ e
+    e = sub(xj, xi)
+    ll = dot(e, e)
     length = np.sqrt(ll)
-    nk = _cross(e, xk - xi)
-    nl = _cross(xi - xj, xl - xj)
-    gk = -length * nk / (nk @ nk)
-    gl = -length * nl / (nl @ nl)
-    sk = (xk - xi) @ e / ll
-    sl = (xl - xi) @ e / ll
-    grad[0:3] = -(1.0 - sk) * gk - (1.0 - sl) * gl
-    grad[3:6] = -sk * gk - sl * gl
-    grad[6:9] = gk
-    grad[9:12] = gl
-    return np.arctan2(_cross(nk, nl) @ e / length, nk @ nl)
+    nk = cross(e, sub(xk, xi))
+    nl = cross(sub(xi, xj), sub(xl, xj))
+    gk = scale(-length / dot(nk, nk), nk)
+    gl = scale(-length / dot(nl, nl), nl)
+    sk = dot(sub(xk, xi), e) / ll
+    sl = dot(sub(xl, xi), e) / ll
+    for p in range(3):
+        grad[p] = -(1.0 - sk) * gk[p] - (1.0 - sl) * gl[p]
+        grad[3 + p] = -sk * gk[p] - sl * gl[p]
+        grad[6 + p] = gk[p]
+        grad[9 + p] = gl[p]
+    return np.arctan2(dot(cross(nk, nl), e) / length, dot(nk, nl))
 
 
 @njit(cache=True)
@@ -88,13 +85,13 @@ def _normal_gradient_jacobian(n, length, e_hat, d_n, jac):
 
 @njit(cache=True)
 def dihedral_angle_hessian(xi, xj, xk, xl, hess):
-    """Exact ∇²θ (12, 12) of the dihedral angle, order (i, j, k, l)."""
+    """Exact ∇²θ (12, 12) of the dihedral angle, order (i, j, k, l); xi… are (3,) arrays."""
     e = xj - xi
     ll = e @ e
     length = np.sqrt(ll)
     e_hat = e / length
-    nk = _cross(e, xk - xi)
-    nl = _cross(xi - xj, xl - xj)
+    nk = np.cross(e, xk - xi)
+    nl = np.cross(xi - xj, xl - xj)
     gk = -length * nk / (nk @ nk)
     gl = -length * nl / (nl @ nl)
     sk = (xk - xi) @ e / ll
@@ -130,26 +127,43 @@ def dihedral_element(xi, xj, xk, xl, theta_rest, coef, project, grad, hess):
     ``project``: the Gauss–Newton Hessian 2c ∇θ∇θᵀ (PSD); else the exact
     2c (∇θ∇θᵀ + (θ − θ̄)∇²θ).
     """
-    g_theta = np.empty(12)
-    theta = dihedral_angle_gradient(xi, xj, xk, xl, g_theta)
+    theta = dihedral_angle_gradient(xi, xj, xk, xl, grad)  # ∇θ, scaled below
     delta = theta - theta_rest
     for a in range(12):
-        grad[a] = 2.0 * coef * delta * g_theta[a]
         for b in range(12):
-            hess[a, b] = 2.0 * coef * g_theta[a] * g_theta[b]
+            hess[a, b] = 2.0 * coef * grad[a] * grad[b]
     if not project:
         h_theta = np.empty((12, 12))
-        dihedral_angle_hessian(xi, xj, xk, xl, h_theta)
-        hess += 2.0 * coef * delta * h_theta
+        dihedral_angle_hessian(np.asarray(xi), np.asarray(xj), np.asarray(xk), np.asarray(xl), h_theta)
+        for a in range(12):
+            for b in range(12):
+                hess[a, b] += 2.0 * coef * delta * h_theta[a, b]
+    for a in range(12):
+        grad[a] *= 2.0 * coef * delta
     return coef * delta * delta
 
 
-@njit(cache=True, parallel=True)
-def dihedral_elements(x, hinge, theta_rest, coef, elem_energy, elem_grad, elem_hess):
-    for h in prange(hinge.shape[0]):
-        i, j, k, l = hinge[h, 0], hinge[h, 1], hinge[h, 2], hinge[h, 3]
-        elem_energy[h] = dihedral_element(x[i], x[j], x[k], x[l], theta_rest[h], coef[h], True,
-                                          elem_grad[h], elem_hess[h])
+@njit(cache=True)
+def dihedral_assemble(x, hinge, theta_rest, coef, slots, grad, values):
+    """W_bend(x); adds ∇W to grad (N, 3) and the Gauss–Newton blocks 2c ∇θ∇θᵀ to values."""
+    g = np.empty(12)
+    total = 0.0
+    for h in range(hinge.shape[0]):
+        theta = dihedral_angle_gradient(load(x, hinge[h, 0]), load(x, hinge[h, 1]),
+                                        load(x, hinge[h, 2]), load(x, hinge[h, 3]), g)
+        delta = theta - theta_rest[h]
+        c2 = 2.0 * coef[h]
+        total += coef[h] * delta * delta
+        for a in range(4):
+            v = hinge[h, a]
+            for p in range(3):
+                grad[v, p] += c2 * delta * g[3 * a + p]
+            for b in range(4):
+                block = values[slots[h, 4 * a + b]]
+                for p in range(3):
+                    for q in range(3):
+                        block[p, q] += c2 * g[3 * a + p] * g[3 * b + q]
+    return total
 
 
 @njit(cache=True)
@@ -157,15 +171,19 @@ def dihedral_angles(x, hinge):
     """θ of every hinge (H,)."""
     out = np.empty(hinge.shape[0])
     for h in range(hinge.shape[0]):
-        out[h] = dihedral_angle(x[hinge[h, 0]], x[hinge[h, 1]], x[hinge[h, 2]], x[hinge[h, 3]])
+        out[h] = dihedral_angle(load(x, hinge[h, 0]), load(x, hinge[h, 1]), load(x, hinge[h, 2]),
+                                load(x, hinge[h, 3]))
     return out
 
 
-@njit(cache=True, parallel=True)
-def dihedral_energies(x, hinge, theta_rest, coef, elem_energy):
-    for h in prange(hinge.shape[0]):
-        d = dihedral_angle(x[hinge[h, 0]], x[hinge[h, 1]], x[hinge[h, 2]], x[hinge[h, 3]]) - theta_rest[h]
-        elem_energy[h] = coef[h] * d * d
+@njit(cache=True)
+def dihedral_total_energy(x, hinge, theta_rest, coef):
+    total = 0.0
+    for h in range(hinge.shape[0]):
+        d = dihedral_angle(load(x, hinge[h, 0]), load(x, hinge[h, 1]), load(x, hinge[h, 2]),
+                           load(x, hinge[h, 3])) - theta_rest[h]
+        total += coef[h] * d * d
+    return total
 
 
 @njit(cache=True)
@@ -174,28 +192,38 @@ def quadratic_weights(rest3d, hinge):
     w = np.empty((hinge.shape[0], 4))
     g = np.empty(12)
     for h in range(hinge.shape[0]):
-        xi, xj, xk, xl = rest3d[hinge[h, 0]], rest3d[hinge[h, 1]], rest3d[hinge[h, 2]], rest3d[hinge[h, 3]]
-        dihedral_angle_gradient(xi, xj, xk, xl, g)
-        n = _cross(xj - xi, xk - xi)
-        n /= np.sqrt(n @ n)
+        xi, xj, xk = load(rest3d, hinge[h, 0]), load(rest3d, hinge[h, 1]), load(rest3d, hinge[h, 2])
+        dihedral_angle_gradient(xi, xj, xk, load(rest3d, hinge[h, 3]), g)
+        n = cross(sub(xj, xi), sub(xk, xi))
+        n = scale(1.0 / np.sqrt(dot(n, n)), n)
         for v in range(4):
             w[h, v] = g[3 * v] * n[0] + g[3 * v + 1] * n[1] + g[3 * v + 2] * n[2]
     return w
 
 
 @njit(cache=True)
-def quadratic_element(xs, w, coef, grad):
-    """E = c ‖Σ w_v x_v‖² for xs (4, 3); writes ∇E (12,). The Hessian is 2c w wᵀ ⊗ I₃."""
-    y = w[0] * xs[0] + w[1] * xs[1] + w[2] * xs[2] + w[3] * xs[3]
+def quadratic_element(xi, xj, xk, xl, w, coef, grad):
+    """E = c ‖Σ w_v x_v‖²; writes ∇E (12,). The Hessian is 2c w wᵀ ⊗ I₃."""
+    y0 = w[0] * xi[0] + w[1] * xj[0] + w[2] * xk[0] + w[3] * xl[0]
+    y1 = w[0] * xi[1] + w[1] * xj[1] + w[2] * xk[1] + w[3] * xl[1]
+    y2 = w[0] * xi[2] + w[1] * xj[2] + w[2] * xk[2] + w[3] * xl[2]
     for v in range(4):
-        grad[3 * v:3 * v + 3] = 2.0 * coef * w[v] * y
-    return coef * (y @ y)
+        grad[3 * v] = 2.0 * coef * w[v] * y0
+        grad[3 * v + 1] = 2.0 * coef * w[v] * y1
+        grad[3 * v + 2] = 2.0 * coef * w[v] * y2
+    return coef * (y0 * y0 + y1 * y1 + y2 * y2)
 
 
-@njit(cache=True, parallel=True)
-def quadratic_elements(x, hinge, w, coef, elem_energy, elem_grad):
-    for h in prange(hinge.shape[0]):
-        xs = np.empty((4, 3))
-        for v in range(4):
-            xs[v] = x[hinge[h, v]]
-        elem_energy[h] = quadratic_element(xs, w[h], coef[h], elem_grad[h])
+@njit(cache=True)
+def quadratic_gradient(x, hinge, w, coef, grad):
+    """W_bend(x) of the quadratic model; adds ∇W to grad (N, 3) unless grad is empty."""
+    g = np.empty(12)
+    total = 0.0
+    for h in range(hinge.shape[0]):
+        total += quadratic_element(load(x, hinge[h, 0]), load(x, hinge[h, 1]), load(x, hinge[h, 2]),
+                                   load(x, hinge[h, 3]), w[h], coef[h], g)
+        if grad.shape[0] > 0:
+            for a in range(4):
+                for p in range(3):
+                    grad[hinge[h, a], p] += g[3 * a + p]
+    return total

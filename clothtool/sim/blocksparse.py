@@ -2,8 +2,13 @@
 
 The pattern (which vertex pairs interact) is built once from the elements; each
 element keeps the slots of its blocks, so assembly is a scatter into ``values``
-(nnzb, 3, 3) without any search. The matrix is stored in full (both triangles):
-the product is then one independent loop per block row, run in parallel.
+(nnzb, 3, 3) without any search. The matrix is stored in full (both triangles),
+so the product is one plain loop over block rows.
+
+The kernels are serial: on the shared 2-core machines this was written on,
+numba's parallel loops were 5–50× slower under load from other processes (the
+threads wait on each other at every barrier), and serial sums in a fixed order
+keep runs bit-for-bit deterministic.
 
 The solver is preconditioned conjugate gradients with the block-Jacobi
 preconditioner (the inverses of the 3×3 diagonal blocks), and pinned vertices
@@ -16,7 +21,7 @@ continues if that one is not.
 """
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
 
 class BlockPattern:
@@ -65,20 +70,9 @@ def scatter_blocks(elem_hess, slots, values):
 
 
 @njit(cache=True)
-def scatter_vectors(elem_grad, elems, out):
-    """out[v] += each element's gradient piece for its vertex v."""
-    k = elems.shape[1]
-    for e in range(elems.shape[0]):
-        for a in range(k):
-            v = elems[e, a]
-            for p in range(3):
-                out[v, p] += elem_grad[e, 3 * a + p]
-
-
-@njit(cache=True, parallel=True)
 def block_multiply(row_ptr, col, values, x, y):
     """y = A x."""
-    for i in prange(row_ptr.shape[0] - 1):
+    for i in range(row_ptr.shape[0] - 1):
         y0 = 0.0
         y1 = 0.0
         y2 = 0.0
@@ -96,16 +90,16 @@ def block_multiply(row_ptr, col, values, x, y):
 
 @njit(cache=True)
 def _dot(a, b):
-    """Σ a·b in a fixed order (no parallel reduction, so results do not depend on threads)."""
+    """Σ a·b over (N, 3) arrays."""
     total = 0.0
     for i in range(a.shape[0]):
         total += a[i, 0] * b[i, 0] + a[i, 1] * b[i, 1] + a[i, 2] * b[i, 2]
     return total
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True)
 def _apply_inverse(inv, r, z):
-    for i in prange(r.shape[0]):
+    for i in range(r.shape[0]):
         b = inv[i]
         z[i, 0] = b[0, 0] * r[i, 0] + b[0, 1] * r[i, 1] + b[0, 2] * r[i, 2]
         z[i, 1] = b[1, 0] * r[i, 0] + b[1, 1] * r[i, 1] + b[1, 2] * r[i, 2]
@@ -132,19 +126,19 @@ def _filter(r, free):
             r[i, 2] = 0.0
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True)
 def _axpy(alpha, x, y):
     """y += alpha x."""
-    for i in prange(x.shape[0]):
+    for i in range(x.shape[0]):
         y[i, 0] += alpha * x[i, 0]
         y[i, 1] += alpha * x[i, 1]
         y[i, 2] += alpha * x[i, 2]
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True)
 def _xpby(x, beta, y):
     """y = x + beta y."""
-    for i in prange(x.shape[0]):
+    for i in range(x.shape[0]):
         y[i, 0] = x[i, 0] + beta * y[i, 0]
         y[i, 1] = x[i, 1] + beta * y[i, 1]
         y[i, 2] = x[i, 2] + beta * y[i, 2]

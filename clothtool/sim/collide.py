@@ -9,7 +9,7 @@ and faces can still cut a collider thinner than the mesh spacing.
 """
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
 
 @njit(cache=True)
@@ -30,10 +30,10 @@ def _respond(x, v, i, normal, depth, mu):
                 v[i, p] *= scale
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True)
 def resolve_collisions(x, v, free, spheres, sphere_mu, planes, plane_mu, margin):
     """spheres (S, 4): centre, radius; planes (P, 6): point, unit normal. In place."""
-    for i in prange(x.shape[0]):
+    for i in range(x.shape[0]):
         if not free[i]:
             continue
         for s in range(spheres.shape[0]):

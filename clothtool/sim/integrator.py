@@ -11,9 +11,9 @@ force is −βKv. Then v_{n+1} = (x_{n+1} − x_n)/h.
 
 Each Newton step solves (M/h² + K(x) + D) Δx = −∇E(x) by PCG, starting from
 x = x_n; the first one from x_n is exactly Baraff–Witkin's linearised step
-(M − h ∂f/∂v − h² ∂f/∂x) Δv = h (f + h ∂f/∂x v_n). Its initial guess is the
-unconstrained free flight Δx = h v_n + h² g, which is the exact answer when no
-force but gravity acts. With ``line_search`` the step length is halved until
+(M − h ∂f/∂v − h² ∂f/∂x) Δv = h (f + h ∂f/∂x v_n). The PCG starts from the
+previous motion Δx = h v_n, which is nearly the answer in slowly changing
+states (a guess with the free-fall term h² g would be far off at rest). With ``line_search`` the step length is halved until
 E does not increase, so no step raises the energy; Newton stops after
 ``newton_iterations`` steps or when the largest velocity correction
 ‖Δx‖∞/h is below ``newton_tolerance``.
@@ -24,11 +24,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from clothtool.errors import NumericalError
-from clothtool.sim.bending import dihedral_elements, dihedral_energies, quadratic_elements
-from clothtool.sim.blocksparse import (block_multiply, filtered_pcg, scatter_blocks,
-                                       scatter_vectors)
+from clothtool.sim.bending import dihedral_assemble, dihedral_total_energy, quadratic_gradient
+from clothtool.sim.blocksparse import block_multiply, filtered_pcg
 from clothtool.sim.collide import resolve_collisions
-from clothtool.sim.membrane import max_principal_stretch, membrane_elements, membrane_energies
+from clothtool.sim.membrane import max_principal_stretch, membrane_assemble, membrane_total_energy
 
 MAX_HALVINGS = 10
 
@@ -47,18 +46,13 @@ class ImplicitEuler:
         self.model = model
         self.solver = solver
         self.h = h
-        n, m, nh = model.n_vertices, len(model.faces), len(model.hinge)
+        n = model.n_vertices
         self._mass3 = model.mass[:, None]
         self._grad = np.zeros((n, 3))
         self._values = model.pattern.zeros()
         self._damping = model.pattern.zeros() if model.damping > 0 else None
-        self._tri_energy = np.zeros(m)
-        self._tri_grad = np.zeros((m, 9))
-        self._tri_hess = np.zeros((m, 9, 9))
-        self._hinge_energy = np.zeros(nh)
-        self._hinge_grad = np.zeros((nh, 12))
-        self._hinge_hess = np.zeros((nh, 12, 12)) if model.bend_model == "dihedral" else None
         self._tmp = np.zeros((n, 3))
+        self._no_grad = np.zeros((0, 3))
 
     # ------------------------------------------------------------------ energies
 
@@ -67,17 +61,13 @@ class ImplicitEuler:
         model = self.model
         total = 0.0
         if model.has_membrane:
-            membrane_energies(x, model.faces, model.dinv, model.area, model.k_stretch,
-                              model.k_shear, self._tri_energy)
-            total += self._tri_energy.sum()
+            total += membrane_total_energy(x, model.faces, model.dinv, model.area,
+                                           model.k_stretch, model.k_shear)
         if model.bend_model == "dihedral":
-            dihedral_energies(x, model.hinge, model.hinge_rest_angle, model.hinge_coef,
-                              self._hinge_energy)
-            total += self._hinge_energy.sum()
+            total += dihedral_total_energy(x, model.hinge, model.hinge_rest_angle, model.hinge_coef)
         elif model.bend_model == "quadratic":
-            quadratic_elements(x, model.hinge, model.hinge_weights, model.hinge_coef,
-                               self._hinge_energy, self._hinge_grad)
-            total += self._hinge_energy.sum()
+            total += quadratic_gradient(x, model.hinge, model.hinge_weights, model.hinge_coef,
+                                        self._no_grad)
         return total
 
     def _elastic_derivatives(self, x):
@@ -91,22 +81,13 @@ class ImplicitEuler:
             values[:] = 0.0
         total = 0.0
         if model.has_membrane:
-            membrane_elements(x, model.faces, model.dinv, model.area, model.k_stretch,
-                              model.k_shear, self._tri_energy, self._tri_grad, self._tri_hess)
-            scatter_vectors(self._tri_grad, model.faces, grad)
-            scatter_blocks(self._tri_hess, model.tri_slots, values)
-            total += self._tri_energy.sum()
+            total += membrane_assemble(x, model.faces, model.dinv, model.area, model.k_stretch,
+                                       model.k_shear, model.tri_slots, grad, values)
         if model.bend_model == "dihedral":
-            dihedral_elements(x, model.hinge, model.hinge_rest_angle, model.hinge_coef,
-                              self._hinge_energy, self._hinge_grad, self._hinge_hess)
-            scatter_vectors(self._hinge_grad, model.hinge, grad)
-            scatter_blocks(self._hinge_hess, model.hinge_slots, values)
-            total += self._hinge_energy.sum()
+            total += dihedral_assemble(x, model.hinge, model.hinge_rest_angle, model.hinge_coef,
+                                       model.hinge_slots, grad, values)
         elif model.bend_model == "quadratic":
-            quadratic_elements(x, model.hinge, model.hinge_weights, model.hinge_coef,
-                               self._hinge_energy, self._hinge_grad)
-            scatter_vectors(self._hinge_grad, model.hinge, grad)
-            total += self._hinge_energy.sum()
+            total += quadratic_gradient(x, model.hinge, model.hinge_weights, model.hinge_coef, grad)
         return total
 
     def _damping_energy(self, dx):
@@ -158,7 +139,7 @@ class ImplicitEuler:
                 grad += self._tmp
             values[pattern.diag] += (model.mass / (h * h))[:, None, None] * np.eye(3)
             if it == 0:
-                dx = (h * state.v + (h * h) * model.gravity)
+                dx = h * state.v
             else:
                 dx = np.zeros_like(x)
             if model.has_pins:
