@@ -165,12 +165,17 @@ def spring_assemble(x, si, sj, rest, k, slots, grad, values):
 
 
 @njit(cache=True)
-def pbd_gauss_seidel(x, si, sj, rest, stiff, inv_mass):
-    """One Gauss–Seidel sweep of distance constraints (Müller et al. 2007), in spring order.
+def pbd_gauss_seidel(x, si, sj, rest, stiff, inv_mass, backward):
+    """One Gauss–Seidel sweep of distance constraints (Müller et al. 2007).
 
     stiff (E,): the per-iteration stiffness k' ∈ [0, 1] of each constraint.
+    ``backward``: visit the springs in reverse order (alternating the direction
+    lets a correction travel across the whole mesh in two sweeps, whichever
+    side the pins are on: symmetric Gauss–Seidel).
     """
-    for e in range(si.shape[0]):
+    m = si.shape[0]
+    for r in range(m):
+        e = m - 1 - r if backward else r
         i, j = si[e], sj[e]
         wsum = inv_mass[i] + inv_mass[j]
         if wsum == 0.0:
@@ -224,10 +229,11 @@ def pbd_jacobi(x, si, sj, rest, stiff, inv_mass, relaxation, delta, count):
 
 
 @njit(cache=True)
-def strain_limit_pass(x, si, sj, rest, structural, inv_mass, lo, hi):
-    """Project every structural spring's length into [lo·L, hi·L] (Gauss–Seidel, full stiffness)."""
+def strain_limit_pass(x, si, sj, rest, limited, inv_mass, lo, hi):
+    """Project the length of every spring with limited[e] into [lo·L, hi·L] (Gauss–Seidel,
+    full stiffness)."""
     for e in range(si.shape[0]):
-        if not structural[e]:
+        if not limited[e]:
             continue
         i, j = si[e], sj[e]
         wsum = inv_mass[i] + inv_mass[j]
@@ -254,13 +260,16 @@ def strain_limit_pass(x, si, sj, rest, structural, inv_mass, lo, hi):
 
 
 @njit(cache=True)
-def xpbd_sweep(x, x_n, si, sj, rest, alpha_tilde, gamma, inv_mass, lam):
+def xpbd_sweep(x, x_n, si, sj, rest, alpha_tilde, gamma, inv_mass, lam, backward):
     """One Gauss–Seidel XPBD sweep (Macklin et al. 2016, eqs. 18 and 26).
 
     C = ‖x_i − x_j‖ − L, α̃ = 1/(k h²), γ = α̃ β h (β: stiffness-proportional
     damping, s; γ = 0 without damping). lam (E,) accumulates the multipliers.
+    ``backward``: reverse order, as in :func:`pbd_gauss_seidel`.
     """
-    for e in range(si.shape[0]):
+    m = si.shape[0]
+    for r in range(m):
+        e = m - 1 - r if backward else r
         i, j = si[e], sj[e]
         wsum = inv_mass[i] + inv_mass[j]
         if wsum == 0.0:

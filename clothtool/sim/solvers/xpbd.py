@@ -3,7 +3,7 @@
 Each spring is a compliant constraint C = ‖x_i − x_j‖ − L_e with compliance
 α_e = 1/k_e (the spring network's stiffness, so XPBD has the same material as
 ``mass-spring``). Per step: predict x = x_n + h v_n + h² g, λ = 0, then
-``iterations`` Gauss–Seidel sweeps of
+``iterations`` Gauss–Seidel sweeps (alternating forward and backward) of
 
     Δλ = (−C − α̃λ − γ ∇C·(x − x_n)) / ((1 + γ) ∇C M⁻¹ ∇Cᵀ + α̃),   x += M⁻¹∇Cᵀ Δλ
 
@@ -45,7 +45,8 @@ class ExtendedPositionBased(SolverBase):
         x = self._inertial_target(state)
         lam = self._lam
         lam[:] = 0.0
-        for _ in range(self.solver.iterations):
-            xpbd_sweep(x, x_n, sp.i, sp.j, sp.rest, self.alpha_tilde, self.gamma, self.inv_mass, lam)
+        for it in range(self.solver.iterations):
+            xpbd_sweep(x, x_n, sp.i, sp.j, sp.rest, self.alpha_tilde, self.gamma, self.inv_mass, lam,
+                       it % 2 == 1)
         self._finish(state, x)
         return StepReport(newton_iterations=self.solver.iterations)
