@@ -44,8 +44,10 @@ class Run:
         return (self.energy[-1] - self.energy[0]) / scale if scale > 0 else math.nan
 
 
-def run_in_memory(config, checkpoints=(), *, warmup=True, bound=100.0):
+def run_in_memory(config, checkpoints=(), *, warmup=True, bound=100.0, initial=None):
     """Simulate ``config`` (dict, path or Config) and record a :class:`Run`.
+
+    ``initial(model, state)``: optional hook that changes the initial state in place.
 
     A run is stopped (``blew_up`` set) when positions become non-finite, a
     speed exceeds ``solver.max_speed`` or a vertex leaves a ball of ``bound``
@@ -63,6 +65,8 @@ def run_in_memory(config, checkpoints=(), *, warmup=True, bound=100.0):
         integ.step(model.initial_state())
     integ = make()
     state = model.initial_state()
+    if initial is not None:
+        initial(model, state)
     run = Run(config.solver.method, config.step)
     checkpoints = set(checkpoints)
     if 0 in checkpoints:
@@ -74,8 +78,12 @@ def run_in_memory(config, checkpoints=(), *, warmup=True, bound=100.0):
         run.gravity.append(gravity)
         run.max_stretch = max(run.max_stretch, integ.max_stretch(state))
 
-    record()
     wall = 0.0
+    try:
+        record()
+    except Exception as exc:  # a kernel that fails on the initial state
+        run.blew_up = f"frame 0: {type(exc).__name__}: {exc}"
+        return run
     for frame in range(1, config.time.frames + 1):
         t0 = time.perf_counter()
         try:
@@ -97,7 +105,11 @@ def run_in_memory(config, checkpoints=(), *, warmup=True, bound=100.0):
         if speed > config.solver.max_speed or reach > bound:
             run.blew_up = f"frame {frame}: speed {speed:.3g} m/s, |x| {reach:.3g} m"
             break
-        record()
+        try:
+            record()
+        except Exception as exc:
+            run.blew_up = f"frame {frame}: {type(exc).__name__}: {exc}"
+            break
         if frame in checkpoints:
             run.positions[frame] = state.x.copy()
     run.wall_per_frame = wall / max(run.frames_done, 1)
