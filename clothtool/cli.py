@@ -132,7 +132,7 @@ Config keys and units: see the README, section Simulation.
 
 @main.command(epilog=SIMULATE_EPILOG)
 @click.argument("config", type=click.Path(dir_okay=False))
-@click.option("-o", "--output", type=click.Path(file_okay=False),
+@click.option("-o", "--output", type=click.Path(),
               help="Output folder, overriding output.dir (relative to the current folder).")
 @click.option("--set", "settings", multiple=True, metavar="KEY=VALUE",
               help="Override one config key, e.g. --set material.stretch=1e5 (repeatable).")
