@@ -196,7 +196,7 @@ class Solver:
 
     method: str = _field("implicit", _choice(METHODS))
     substeps: int = _field(1, _integer(minimum=1))
-    tolerance: float = _field(1.0e-6, _number(minimum=0, exclusive=True, maximum=1))
+    tolerance: float = _field(1.0e-3, _number(minimum=0, exclusive=True, maximum=1))
     max_iterations: int = _field(500, _integer(minimum=1))
     newton_iterations: int = _field(1, _integer(minimum=1))
     newton_tolerance: float = _field(1.0e-6, _number(minimum=0))
