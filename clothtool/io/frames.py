@@ -4,6 +4,8 @@ import glob
 import os
 import re
 
+import numpy as np
+
 from clothtool.errors import InputError
 
 _DIGITS = re.compile(r"(\d+)")
@@ -41,3 +43,48 @@ def discover_frames(inputs):
         else:
             raise InputError(f"{item}: no such file or folder")
     return frames
+
+
+class FrameReader:
+    """Reads the frames of a sequence against the topology of the first.
+
+    Every frame must have the first frame's vertex count and faces; a face block
+    that is byte-identical to the first frame's is not parsed again.
+    """
+
+    def __init__(self, paths):
+        from clothtool.io.ply import read_ply
+
+        self._read_ply = read_ply
+        self.paths = list(paths)
+        self.first = read_ply(self.paths[0])
+        if len(self.first.faces) == 0:
+            raise InputError(f"{self.paths[0]}: mesh has no faces")
+
+    @property
+    def faces(self):
+        return self.first.faces
+
+    @property
+    def n_vertices(self):
+        return len(self.first.vertices)
+
+    def mesh(self, i):
+        """The :class:`~clothtool.io.ply.PlyMesh` of frame ``i``, checked against frame 0."""
+        if i == 0:
+            return self.first
+        return self.check_same_topology(self._read_ply(self.paths[i], reuse=self.first),
+                                        self.paths[i])
+
+    def positions(self, i):
+        """(N, 3) float64 positions of frame ``i``."""
+        return self.mesh(i).vertices
+
+    def check_same_topology(self, mesh, path):
+        first = self.paths[0]
+        if len(mesh.vertices) != self.n_vertices:
+            raise InputError(f"{path}: {len(mesh.vertices)} vertices, but {first} has "
+                             f"{self.n_vertices}; frames must correspond vertex by vertex")
+        if mesh.faces is not self.first.faces and not np.array_equal(mesh.faces, self.first.faces):
+            raise InputError(f"{path}: faces differ from those of {first}")
+        return mesh

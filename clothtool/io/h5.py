@@ -1,0 +1,126 @@
+"""Writing analysis results to HDF5 (spec §4) without ever leaving a partial file.
+
+The file is written under a temporary name in the target folder and renamed over
+the target only when complete; on any error, Ctrl-C or SIGTERM the temporary file
+is removed and an existing output stays byte-identical. Field datasets are chunked
+one pair per chunk row so that a pair is read without touching the others.
+"""
+
+import os
+
+import numpy as np
+
+from clothtool.errors import InputError
+
+CHUNK_BYTES = 4 << 20  # upper bound on one chunk (HDF5's own limit is 4 GiB)
+
+
+def check_output_path(path):
+    """Fail before any work when ``path`` cannot be written: a folder, a missing or
+    read-only folder."""
+    path = os.fspath(path)
+    if os.path.isdir(path):
+        raise InputError(f"{path}: output path is a folder")
+    folder = os.path.dirname(os.path.abspath(path))
+    if not os.path.isdir(folder):
+        raise InputError(f"{path}: output folder {folder} does not exist")
+    if not os.access(folder, os.W_OK | os.X_OK):
+        raise InputError(f"{path}: output folder {folder} is not writable")
+    if os.path.exists(path) and not os.access(path, os.W_OK):
+        raise InputError(f"{path}: output file is not writable")
+
+
+def parse_compression(spec):
+    """'none' → {} ; 'gzip' or 'gzip=LEVEL' → h5py keyword arguments (with shuffle)."""
+    spec = (spec or "none").strip().lower()
+    if spec == "none":
+        return {}
+    name, _, level = spec.partition("=")
+    if name == "gzip":
+        if not level:
+            return {"compression": "gzip", "compression_opts": 4, "shuffle": True}
+        if level.isdigit() and 0 <= int(level) <= 9:
+            return {"compression": "gzip", "compression_opts": int(level), "shuffle": True}
+    raise InputError(f"--compression: {spec!r} is not 'none', 'gzip' or 'gzip=0..9'")
+
+
+class AtomicH5:
+    """``with AtomicH5(path) as f:`` gives an ``h5py.File`` on a temporary name that
+    becomes ``path`` only if the block completes."""
+
+    def __init__(self, path):
+        self.path = os.path.abspath(os.fspath(path))
+        folder, name = os.path.split(self.path)
+        self.tmp = os.path.join(folder, f".{name}.tmp-{os.getpid()}")
+        self.file = None
+
+    def __enter__(self):
+        import h5py
+
+        self.file = h5py.File(self.tmp, "w")
+        return self.file
+
+    def __exit__(self, exc_type, exc, tb):
+        try:
+            self.file.close()
+        finally:
+            if exc_type is None:
+                os.replace(self.tmp, self.path)
+            elif os.path.exists(self.tmp):
+                os.remove(self.tmp)
+        return False
+
+
+def create_pair_dataset(group, name, n_pairs, item_shape, dtype, compression, fillvalue=None):
+    """A (P, *item_shape) dataset chunked as (1, rows, ...) with a chunk ≤ CHUNK_BYTES;
+    unwritten elements read as ``fillvalue``."""
+    item_shape = tuple(item_shape)
+    row_bytes = int(np.prod(item_shape[1:], dtype=np.int64)) * np.dtype(dtype).itemsize
+    rows = max(1, min(item_shape[0], CHUNK_BYTES // max(row_bytes, 1))) if item_shape[0] else 1
+    chunks = (1, rows, *item_shape[1:])
+    return group.create_dataset(name, shape=(n_pairs, *item_shape), dtype=dtype,
+                                chunks=chunks, fillvalue=fillvalue, **compression)
+
+
+class PairWriter:
+    """Writes each pair's arrays on a background thread while the next pair is computed.
+
+    Double-buffered: :meth:`buffers` returns a set of arrays that is not being written
+    (waiting for the write that used it two pairs ago); :meth:`write` queues it. The
+    numba kernels release the GIL, so computing pair p+1 overlaps writing pair p.
+    Errors of the writer thread are raised in the caller at the next call or at exit.
+    """
+
+    def __init__(self, datasets, make_buffers):
+        from concurrent.futures import ThreadPoolExecutor
+
+        self.datasets = datasets
+        self._sets = [make_buffers(), make_buffers()]
+        self._pending = [None, None]
+        self._turn = 0
+        self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="clothtool-h5")
+
+    def buffers(self):
+        pending = self._pending[self._turn]
+        if pending is not None:
+            pending.result()
+        return self._sets[self._turn]
+
+    def write(self, index, buffers):
+        self._pending[self._turn] = self._pool.submit(self._write, index, buffers)
+        self._turn ^= 1
+
+    def _write(self, index, buffers):
+        for name, dataset in self.datasets.items():
+            dataset[index] = buffers[name]
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, exc_type, exc, tb):
+        self._pool.shutdown(wait=True, cancel_futures=exc_type is not None)
+        if exc_type is None:
+            for pending in self._pending:
+                if pending is not None:
+                    pending.result()
+        return False
