@@ -290,16 +290,10 @@ def simulate(config, output, settings, quiet):
 
     CONFIG is a YAML file (mesh, material, scene, solver, time, output).
     """
-    from clothtool.errors import InputError
     from clothtool.sim.api import simulate as run
 
-    overrides = {}
-    for item in settings:
-        key, sep, value = item.partition("=")
-        if not sep or not key:
-            raise InputError(f"--set {item!r}: expected KEY=VALUE, e.g. material.stretch=1e5")
-        overrides[key.strip()] = value
-    result = run(config, output_dir=output, overrides=overrides, progress=_progress_enabled(quiet))
+    result = run(config, output_dir=output, overrides=list(settings),
+                 progress=_progress_enabled(quiet))
     if not quiet:
         click.echo(result.describe())
 

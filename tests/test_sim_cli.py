@@ -43,7 +43,7 @@ def test_bad_config_is_one_line_and_exit_2(tmp_path):
 
 def test_bad_set_is_exit_2(tmp_path):
     result = CliRunner().invoke(main, ["simulate", str(write_config(tmp_path)), "--set", "stretch"])
-    assert result.exit_code == 2 and "expected KEY=VALUE" in result.output
+    assert result.exit_code == 2 and "expected dotted.key=value" in result.output
 
 
 def test_blow_up_is_exit_3_naming_the_frame(tmp_path):
