@@ -138,12 +138,12 @@ def polar_2x2(f00, f01, f10, f11):
     det = f00 * f11 - f01 * f10
     if det >= 0.0:
         c, s = f00 + f11, f10 - f01
-        h = np.hypot(c, s)
+        h = np.sqrt(c * c + s * s)
         c, s = c / h, s / h
         r00, r01, r10, r11 = c, -s, s, c
     else:
         c, s = f00 - f11, f10 + f01
-        h = np.hypot(c, s)
+        h = np.sqrt(c * c + s * s)
         c, s = c / h, s / h
         r00, r01, r10, r11 = c, s, s, -c
     u00 = r00 * f00 + r10 * f10
@@ -158,7 +158,7 @@ def principal_2x2(u00, u01, u11, absdet):
 
     Returns λ1 ≥ λ2 and the unit eigenvector (v0, v1) of λ1 (that of λ2 is (−v1, v0))."""
     half = 0.5 * (u00 - u11)
-    d = np.hypot(half, u01)
+    d = np.sqrt(half * half + u01 * u01)
     lam1 = 0.5 * (u00 + u11) + d
     lam2 = min(absdet / lam1, lam1) if lam1 > 0.0 else 0.0  # min: rounding when λ1 ≈ λ2
     if d == 0.0:
@@ -167,7 +167,7 @@ def principal_2x2(u00, u01, u11, absdet):
         v0, v1 = half + d, u01
     else:
         v0, v1 = u01, d - half
-    h = np.hypot(v0, v1)
+    h = np.sqrt(v0 * v0 + v1 * v1)
     return lam1, lam2, v0 / h, v1 / h
 
 

@@ -11,10 +11,11 @@ threads wait on each other at every barrier), and serial sums in a fixed order
 keep runs bit-for-bit deterministic.
 
 The solver is preconditioned conjugate gradients with the block-Jacobi
-preconditioner (the inverses of the 3×3 diagonal blocks), and pinned vertices
-are handled by Baraff–Witkin's filter (1998, §5.3): with S_v = 0 for pinned and
-I for free vertices, the residual and every search direction are filtered, so
-the pinned components of the solution keep their initial value exactly. The stop
+preconditioner (the inverses of the 3×3 diagonal blocks), and constraints are
+handled by Baraff–Witkin's filter (1998, §5.3): S_v = I for a free vertex, 0 for
+a pinned one, I − n nᵀ for one held on a collider surface with normal n. The
+residual and every search direction are filtered, so the constrained components
+of the solution keep their initial (prescribed) values exactly. The stop
 test is on the true relative residual ‖S(b − Ax)‖ / ‖S b‖: when the recurrence
 says converged, the residual is recomputed from its definition and iteration
 continues if that one is not.
@@ -106,24 +107,33 @@ def _apply_inverse(inv, r, z):
         z[i, 2] = b[2, 0] * r[i, 0] + b[2, 1] * r[i, 1] + b[2, 2] * r[i, 2]
 
 
+FREE, PINNED, SLIDING = 0, 1, 2  # constraint kind of a vertex
+
+
 @njit(cache=True)
-def block_jacobi(values, diag, free):
-    """Inverses of the diagonal blocks (zero for pinned vertices: S P⁻¹ S)."""
+def block_jacobi(values, diag, kind):
+    """Inverses of the diagonal blocks (zero for pinned vertices)."""
     n = diag.shape[0]
     inv = np.zeros((n, 3, 3))
     for i in range(n):
-        if free[i]:
+        if kind[i] != PINNED:
             inv[i] = np.linalg.inv(values[diag[i]])
     return inv
 
 
 @njit(cache=True)
-def _filter(r, free):
+def apply_filter(r, kind, normal):
+    """r ← S r: zero for pinned vertices, the tangential part for sliding ones."""
     for i in range(r.shape[0]):
-        if not free[i]:
+        if kind[i] == PINNED:
             r[i, 0] = 0.0
             r[i, 1] = 0.0
             r[i, 2] = 0.0
+        elif kind[i] == SLIDING:
+            rn = r[i, 0] * normal[i, 0] + r[i, 1] * normal[i, 1] + r[i, 2] * normal[i, 2]
+            r[i, 0] -= rn * normal[i, 0]
+            r[i, 1] -= rn * normal[i, 1]
+            r[i, 2] -= rn * normal[i, 2]
 
 
 @njit(cache=True)
@@ -145,36 +155,44 @@ def _xpby(x, beta, y):
 
 
 @njit(cache=True)
-def _true_residual(row_ptr, col, values, b, x, free, has_pins, r):
-    """r = S(b − A x)."""
+def residual(row_ptr, col, values, b, x, r):
+    """r = b − A x (unfiltered: at constrained vertices, the constraint force)."""
     block_multiply(row_ptr, col, values, x, r)
     for i in range(r.shape[0]):
         for p in range(3):
             r[i, p] = b[i, p] - r[i, p]
-    if has_pins:
-        _filter(r, free)
 
 
 @njit(cache=True)
-def filtered_pcg(row_ptr, col, values, diag, b, x, free, has_pins, tol, max_iter):
-    """Solve A x = b on the free vertices, starting from x (pinned rows of x kept as given).
+def _precondition(inv, r, kind, normal, constrained, z):
+    _apply_inverse(inv, r, z)
+    if constrained:
+        apply_filter(z, kind, normal)
 
-    Returns (iterations, relative true residual).
+
+@njit(cache=True)
+def filtered_pcg(row_ptr, col, values, diag, b, x, kind, normal, constrained, tol, max_iter):
+    """Solve S(A x − b) = 0 from x, whose constrained components (I − S)x stay as given.
+
+    ``kind`` (N,) int8 and ``normal`` (N, 3) define S; ``constrained`` says whether
+    any vertex is constrained (else the filter is skipped).
+    Returns (iterations, relative true residual ‖S(b − Ax)‖ / ‖S b‖).
     """
     n = b.shape[0]
-    inv = block_jacobi(values, diag, free)
+    inv = block_jacobi(values, diag, kind)
     sb = b.copy()
-    if has_pins:
-        _filter(sb, free)
+    if constrained:
+        apply_filter(sb, kind, normal)
     b_norm = np.sqrt(_dot(sb, sb))
-    if b_norm == 0.0:
-        x[:] = 0.0
-        return 0, 0.0
     r = np.empty((n, 3))
-    _true_residual(row_ptr, col, values, b, x, free, has_pins, r)
     z = np.empty((n, 3))
     q = np.empty((n, 3))
-    _apply_inverse(inv, r, z)
+    residual(row_ptr, col, values, b, x, r)
+    if constrained:
+        apply_filter(r, kind, normal)
+    if b_norm == 0.0:
+        b_norm = 1.0  # nothing to solve for but the prescribed components: absolute test
+    _precondition(inv, r, kind, normal, constrained, z)
     p = z.copy()
     rz = _dot(r, z)
     res = np.sqrt(_dot(r, r)) / b_norm
@@ -182,29 +200,33 @@ def filtered_pcg(row_ptr, col, values, diag, b, x, free, has_pins, tol, max_iter
     while it < max_iter:
         if res <= tol:
             # confirm on the true residual before stopping
-            _true_residual(row_ptr, col, values, b, x, free, has_pins, r)
+            residual(row_ptr, col, values, b, x, r)
+            if constrained:
+                apply_filter(r, kind, normal)
             res = np.sqrt(_dot(r, r)) / b_norm
             if res <= tol:
                 break
-            _apply_inverse(inv, r, z)
+            _precondition(inv, r, kind, normal, constrained, z)
             p[:] = z
             rz = _dot(r, z)
         block_multiply(row_ptr, col, values, p, q)
-        if has_pins:
-            _filter(q, free)
+        if constrained:
+            apply_filter(q, kind, normal)
         pq = _dot(p, q)
         if pq <= 0.0:
             break
         alpha = rz / pq
         _axpy(alpha, p, x)
         _axpy(-alpha, q, r)
-        _apply_inverse(inv, r, z)
+        _precondition(inv, r, kind, normal, constrained, z)
         rz_new = _dot(r, z)
         _xpby(z, rz_new / rz, p)
         rz = rz_new
         res = np.sqrt(_dot(r, r)) / b_norm
         it += 1
     if it == max_iter:
-        _true_residual(row_ptr, col, values, b, x, free, has_pins, r)
+        residual(row_ptr, col, values, b, x, r)
+        if constrained:
+            apply_filter(r, kind, normal)
         res = np.sqrt(_dot(r, r)) / b_norm
     return it, res

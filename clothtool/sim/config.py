@@ -18,7 +18,7 @@ import math
 import os
 from dataclasses import dataclass, field, fields, is_dataclass
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Mapping
 
 import yaml
 
@@ -258,11 +258,13 @@ SECTIONS = {"mesh": MeshSpec, "material": Material, "scene": Scene,
 # ---------------------------------------------------------------------------- loading
 
 
-def load_config(config, *, overrides: Mapping[str, Any] | None = None) -> Config:
+def load_config(config, *, overrides=None) -> Config:
     """Read and validate a config: a YAML path, or an already-parsed dict.
 
-    ``overrides``: dotted keys → values (``{"material.stretch": 1e5}``), applied
-    before validation; string values are read as YAML scalars, as ``--set`` gives them.
+    ``overrides``, applied before validation: a mapping of dotted keys → values
+    (``{"material.stretch": 1e5}``; string values are read as YAML scalars), or a
+    list of ``"key=value"`` strings as ``--set`` gives them
+    (:func:`clothtool.config_tools.apply_overrides`, which also indexes lists).
     """
     if isinstance(config, Mapping):
         raw, source, base = _deep_copy(config), None, Path.cwd()
@@ -270,8 +272,13 @@ def load_config(config, *, overrides: Mapping[str, Any] | None = None) -> Config
         source = Path(os.fspath(config))
         raw = _read_yaml(source)
         base = source.parent
-    for dotted, value in (overrides or {}).items():
-        _apply_override(raw, dotted, value)
+    if isinstance(overrides, Mapping):
+        for dotted, value in overrides.items():
+            _apply_override(raw, dotted, value)
+    elif overrides:
+        from clothtool.config_tools import apply_overrides
+
+        raw = apply_overrides(raw, list(overrides))
     label = str(source) if source is not None else "config"
     try:
         cfg = _build_config(raw, base)

@@ -25,8 +25,8 @@ import numpy as np
 
 from clothtool.errors import NumericalError
 from clothtool.sim.bending import dihedral_assemble, dihedral_total_energy, quadratic_gradient
-from clothtool.sim.blocksparse import block_multiply, filtered_pcg
-from clothtool.sim.collide import resolve_collisions
+from clothtool.sim.blocksparse import block_multiply, filtered_pcg, residual
+from clothtool.sim.collide import apply_friction, contact_constraints, resolve_collisions
 from clothtool.sim.membrane import max_principal_stretch, membrane_assemble, membrane_total_energy
 
 MAX_HALVINGS = 10
@@ -53,6 +53,9 @@ class ImplicitEuler:
         self._damping = model.pattern.zeros() if model.damping > 0 else None
         self._tmp = np.zeros((n, 3))
         self._no_grad = np.zeros((0, 3))
+        self._normal = np.zeros((n, 3))
+        self._contact = np.full(n, -1, dtype=np.int64)
+        self._released = np.zeros(n, dtype=np.bool_)  # contacts that pulled last step
 
     # ------------------------------------------------------------------ energies
 
@@ -124,6 +127,17 @@ class ImplicitEuler:
         x_n = state.x
         target = x_n + h * state.v
         x = x_n.copy()
+        kind = model.kind.copy()
+        dx = h * state.v  # PCG guess: the previous motion
+        if model.has_pins:
+            dx[model.pinned] = 0.0
+        constrained = model.has_pins
+        if model.has_colliders:
+            predicted = target + (h * h) * model.gravity
+            held = contact_constraints(x_n, predicted, kind, self._released, model.spheres,
+                                       model.planes, model.collision_margin, self._normal, dx,
+                                       self._contact)
+            constrained = constrained or held > 0
         report = StepReport()
         for it in range(solver.newton_iterations):
             elastic = self._elastic_derivatives(x)
@@ -138,18 +152,14 @@ class ImplicitEuler:
                 self._damping_energy(x - x_n)
                 grad += self._tmp
             values[pattern.diag] += (model.mass / (h * h))[:, None, None] * np.eye(3)
-            if it == 0:
-                dx = h * state.v
-            else:
-                dx = np.zeros_like(x)
-            if model.has_pins:
-                dx[model.pinned] = 0.0
-            cg_its, residual = filtered_pcg(pattern.row_ptr, pattern.col, values, pattern.diag,
-                                            -grad, dx, model.free, model.has_pins,
-                                            solver.tolerance, solver.max_iterations)
+            if it > 0:
+                dx = np.zeros_like(x)  # constrained components were reached in the first step
+            cg_its, res = filtered_pcg(pattern.row_ptr, pattern.col, values, pattern.diag, -grad,
+                                       dx, kind, self._normal, constrained, solver.tolerance,
+                                       solver.max_iterations)
             report.newton_iterations += 1
             report.cg_iterations += cg_its
-            report.residual = max(report.residual, residual)
+            report.residual = max(report.residual, res)
             if not np.all(np.isfinite(dx)):
                 raise NumericalError("the linear solve produced non-finite values")
             step = 1.0
@@ -170,6 +180,17 @@ class ImplicitEuler:
         state.x = x
         state.time += h
         if model.has_colliders:
-            resolve_collisions(state.x, state.v, model.free, model.spheres, model.sphere_friction,
-                               model.planes, model.plane_friction, model.collision_margin)
+            self._contact_response(state, values, -grad, dx)
         return report
+
+    def _contact_response(self, state, values, b, dx):
+        """Friction from the constraint forces, release of pulling contacts, projection."""
+        model = self.model
+        force = self._tmp
+        residual(model.pattern.row_ptr, model.pattern.col, values, b, dx, force)
+        apply_friction(state.v, model.mass, self.h, self._contact, force, self._normal,
+                       model.friction)
+        held = self._contact >= 0
+        self._released[:] = held & (np.einsum("ij,ij->i", force, self._normal) < 0.0)
+        resolve_collisions(state.x, state.v, model.free, model.spheres, model.planes,
+                           model.collision_margin)

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from clothtool.errors import InputError
-from clothtool.sim.blocksparse import BlockPattern, scatter_blocks
+from clothtool.sim.blocksparse import FREE, PINNED, BlockPattern, scatter_blocks
 from clothtool.sim.config import Plane, Sphere
 from clothtool.sim.mesh import build_rest_mesh, hinges, rest_edge_matrices
 from clothtool.sim.pins import resolve_pins
@@ -38,10 +38,10 @@ class Model:
     hinge_weights: np.ndarray | None  # (H, 4) for the quadratic model
     pinned: np.ndarray  # (P,) vertex indices
     free: np.ndarray  # (N,) bool
-    spheres: np.ndarray  # (S, 4)
-    sphere_friction: np.ndarray
-    planes: np.ndarray  # (Q, 6)
-    plane_friction: np.ndarray
+    kind: np.ndarray  # (N,) int8 constraint kind: FREE or PINNED (contacts are added per step)
+    spheres: np.ndarray  # (S, 4) centre, radius
+    planes: np.ndarray  # (Q, 6) point, unit normal
+    friction: np.ndarray  # (S + Q,) Coulomb coefficient per collider, spheres first
     collision_margin: float
     pattern: BlockPattern
     tri_slots: np.ndarray  # (M, 9)
@@ -74,8 +74,8 @@ class Model:
 
         state = State(self.mesh.positions.copy(), np.zeros_like(self.mesh.positions))
         if self.has_colliders:
-            resolve_collisions(state.x, state.v, self.free, self.spheres, self.sphere_friction,
-                               self.planes, self.plane_friction, self.collision_margin)
+            resolve_collisions(state.x, state.v, self.free, self.spheres, self.planes,
+                               self.collision_margin)
         return state
 
 
@@ -107,6 +107,8 @@ def build_model(config):
     pinned = resolve_pins(config.scene.pins, n, mesh.grid_shape)
     free = np.ones(n, dtype=np.bool_)
     free[pinned] = False
+    kind = np.full(n, FREE, dtype=np.int8)
+    kind[pinned] = PINNED
 
     spheres = [c for c in config.scene.colliders if isinstance(c, Sphere)]
     planes = [c for c in config.scene.colliders if isinstance(c, Plane)]
@@ -130,9 +132,9 @@ def build_model(config):
         k_stretch=mat.stretch, k_shear=mat.shear, damping=mat.damping,
         gravity=np.asarray(config.scene.gravity, dtype=np.float64),
         bend_model=bend_model, hinge=hinge, hinge_rest_angle=rest_angle, hinge_coef=coef,
-        hinge_weights=weights, pinned=pinned, free=free,
-        spheres=sphere_arr, sphere_friction=np.array([c.friction for c in spheres], dtype=np.float64),
-        planes=plane_arr, plane_friction=np.array([c.friction for c in planes], dtype=np.float64),
+        hinge_weights=weights, pinned=pinned, free=free, kind=kind,
+        spheres=sphere_arr, planes=plane_arr,
+        friction=np.array([c.friction for c in spheres + planes], dtype=np.float64),
         collision_margin=config.scene.collision_margin,
         pattern=pattern, tri_slots=tri_slots, hinge_slots=hinge_slots, constant_hessian=constant,
     )
