@@ -10,6 +10,12 @@ import sys
 
 import click
 
+try:  # click ≥ 8.2 raises this (a UsageError) for a bare command that has no_args_is_help
+    from click.exceptions import NoArgsIsHelpError
+except ImportError:  # pragma: no cover
+    class NoArgsIsHelpError(Exception):
+        pass
+
 from clothtool import __version__
 from clothtool.errors import ClothtoolError
 
@@ -23,24 +29,49 @@ def _raise_interrupt(signum, frame):
 
 
 class ClothtoolGroup(click.Group):
-    """A click group that turns clothtool's errors into one-line messages and exit codes."""
+    """A click group that turns every failure into one line on stderr and an exit code."""
+
+    def parse_args(self, ctx, args):
+        try:
+            return super().parse_args(ctx, args)
+        except NoArgsIsHelpError:
+            raise  # bare ``clothtool`` shows the help
+        except click.UsageError as exc:
+            _fail(ctx, _usage_message(exc), 2, exc)
 
     def invoke(self, ctx):
-        debug = "--debug" in sys.argv[1:]
         # SIGTERM is handled like Ctrl-C so that temporary outputs are cleaned up.
         signal.signal(signal.SIGTERM, _raise_interrupt)
         try:
             return super().invoke(ctx)
         except ClothtoolError as exc:
-            if debug:
-                raise
-            click.echo(f"clothtool: error: {exc}", err=True)
-            ctx.exit(exc.exit_code)
-        except KeyboardInterrupt:
-            if debug:
-                raise
-            click.echo("clothtool: interrupted", err=True)
-            ctx.exit(130)
+            _fail(ctx, f"error: {exc}", exc.exit_code, exc)
+        except NoArgsIsHelpError:
+            raise
+        except click.UsageError as exc:
+            _fail(ctx, _usage_message(exc), 2, exc)
+        except KeyboardInterrupt as exc:
+            _fail(ctx, "interrupted", 130, exc)
+        except OSError as exc:  # an input or output the library did not anticipate
+            where = f"{exc.filename}: " if exc.filename else ""
+            _fail(ctx, f"error: {where}{exc.strerror or exc}", 2, exc)
+        except (click.exceptions.Exit, click.exceptions.Abort):
+            raise
+        except Exception as exc:  # a bug: still one line, the traceback with --debug
+            _fail(ctx, f"internal error: {type(exc).__name__}: {exc} "
+                       "(run with --debug for the traceback and please report it)", 1, exc)
+
+
+def _usage_message(exc):
+    command = exc.ctx.command_path if exc.ctx is not None else "clothtool"
+    return f"error: {exc.format_message()} (see '{command} --help')"
+
+
+def _fail(ctx, message, code, exc):
+    if "--debug" in sys.argv[1:]:
+        raise exc
+    click.echo(f"clothtool: {' '.join(message.split())}", err=True)
+    ctx.exit(code)
 
 
 @click.group(cls=ClothtoolGroup, epilog=EXIT_CODES_HELP)

@@ -10,7 +10,8 @@ import os
 
 import numpy as np
 
-from clothtool.errors import InputError
+from clothtool.errors import ClothtoolError, InputError
+from clothtool.io.atomic import finish, temporary_name
 
 CHUNK_BYTES = 4 << 20  # upper bound on one chunk (HDF5's own limit is 4 GiB)
 
@@ -46,29 +47,37 @@ def parse_compression(spec):
 
 class AtomicH5:
     """``with AtomicH5(path) as f:`` gives an ``h5py.File`` on a temporary name that
-    becomes ``path`` only if the block completes."""
+    becomes ``path`` only if the block completes. An ``OSError`` while writing (a full
+    disk, say) becomes an :class:`InputError` naming ``path``."""
 
     def __init__(self, path):
         self.path = os.path.abspath(os.fspath(path))
-        folder, name = os.path.split(self.path)
-        self.tmp = os.path.join(folder, f".{name}.tmp-{os.getpid()}")
+        self.tmp = temporary_name(self.path)
         self.file = None
 
     def __enter__(self):
         import h5py
 
-        self.file = h5py.File(self.tmp, "w")
+        try:
+            self.file = h5py.File(self.tmp, "w")
+        except BaseException as exc:
+            finish(self.tmp, self.path, ok=False)
+            if isinstance(exc, OSError):
+                raise self._write_error(exc) from exc
+            raise
         return self.file
 
     def __exit__(self, exc_type, exc, tb):
         try:
-            self.file.close()
-        finally:
-            if exc_type is None:
-                os.replace(self.tmp, self.path)
-            elif os.path.exists(self.tmp):
-                os.remove(self.tmp)
+            finish(self.tmp, self.path, ok=exc_type is None, close=self.file.close)
+        except OSError as error:
+            raise self._write_error(error) from error
+        if isinstance(exc, OSError) and not isinstance(exc, ClothtoolError):
+            raise self._write_error(exc) from exc
         return False
+
+    def _write_error(self, exc):
+        return InputError(f"{self.path}: cannot write: {exc.strerror or exc}")
 
 
 def create_pair_dataset(group, name, n_pairs, item_shape, dtype, compression):
