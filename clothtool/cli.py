@@ -68,7 +68,7 @@ def _usage_message(exc):
 
 
 def _fail(ctx, message, code, exc):
-    if "--debug" in sys.argv[1:]:
+    if ctx.find_root().params.get("debug") or "--debug" in sys.argv[1:]:
         raise exc
     click.echo(f"clothtool: {' '.join(message.split())}", err=True)
     ctx.exit(code)

@@ -293,6 +293,8 @@ def _min_bytes(el):
 def _read_binary_lists(data, el, order, offset, path):
     """Read an element with list properties. Fast path: every list has the length
     of the first record's (one structured ``frombuffer``); else record by record."""
+    if el.count == 0:
+        return {p.name: [] for p in el.properties}, offset
     lengths, probe = [], offset
     for p in el.properties:  # lengths of the first record's lists
         if p.is_list:
