@@ -5,8 +5,8 @@ Every command body imports its heavy modules (numba, h5py) lazily so that
 code (spec §6): 0 done, 2 bad input or usage, 3 numerical failure, 130 interrupted.
 """
 
-import signal
 import sys
+import traceback
 
 import click
 
@@ -16,16 +16,12 @@ except ImportError:  # pragma: no cover
     class NoArgsIsHelpError(Exception):
         pass
 
-from clothtool import __version__
+from clothtool import __version__, interrupt
 from clothtool.errors import ClothtoolError
 
 EXIT_CODES_HELP = """\b
 Exit codes: 0 done, 2 bad input, usage or unusable output path,
             3 numerical failure (a simulation that blew up), 130 interrupted."""
-
-
-def _raise_interrupt(signum, frame):
-    raise KeyboardInterrupt
 
 
 class ClothtoolGroup(click.Group):
@@ -41,7 +37,7 @@ class ClothtoolGroup(click.Group):
 
     def invoke(self, ctx):
         # SIGTERM is handled like Ctrl-C so that temporary outputs are cleaned up.
-        signal.signal(signal.SIGTERM, _raise_interrupt)
+        interrupt.install()
         try:
             return super().invoke(ctx)
         except ClothtoolError as exc:
@@ -58,8 +54,20 @@ class ClothtoolGroup(click.Group):
         except (click.exceptions.Exit, click.exceptions.Abort):
             raise
         except Exception as exc:  # a bug: still one line, the traceback with --debug
+            if _caused_by_interrupt(exc):  # Ctrl-C inside a numba kernel surfaces as SystemError
+                _fail(ctx, "interrupted", 130, exc)
             _fail(ctx, f"internal error: {type(exc).__name__}: {exc} "
                        "(run with --debug for the traceback and please report it)", 1, exc)
+
+
+def _caused_by_interrupt(exc):
+    seen = set()
+    while exc is not None and id(exc) not in seen:
+        if isinstance(exc, KeyboardInterrupt):
+            return True
+        seen.add(id(exc))
+        exc = exc.__cause__ or exc.__context__
+    return False
 
 
 def _usage_message(exc):
@@ -69,7 +77,7 @@ def _usage_message(exc):
 
 def _fail(ctx, message, code, exc):
     if ctx.find_root().params.get("debug") or "--debug" in sys.argv[1:]:
-        raise exc
+        traceback.print_exception(type(exc), exc, exc.__traceback__, file=sys.stderr)
     click.echo(f"clothtool: {' '.join(message.split())}", err=True)
     ctx.exit(code)
 

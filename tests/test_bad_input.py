@@ -471,10 +471,12 @@ def test_folder_passed_as_a_file(tmp_path):
         read_ply(tmp_path)
 
 
-def test_debug_shows_the_traceback(tmp_path):
+def test_debug_shows_the_traceback_and_keeps_the_exit_code(tmp_path):
     result = CliRunner().invoke(main, ["--debug", "analyze", str(tmp_path / "nowhere"),
                                        "-o", str(tmp_path / "o.h5")])
-    assert isinstance(result.exception, InputError)
+    assert result.exit_code == 2
+    assert result.stderr.startswith("Traceback")
+    assert result.stderr.splitlines()[-1] == f"clothtool: error: {tmp_path / 'nowhere'}: no such file or folder"
 
 
 def test_non_finite_coordinates_are_flagged_not_rejected(tmp_path):

@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from clothtool import __version__
+from clothtool import __version__, interrupt
 from clothtool.analysis.deformation2d import (DEGENERATE_TOL, FIELDS, allocate_fields,
                                               deformation_fields, reference_from_positions,
                                               reference_from_uv)
@@ -169,6 +169,7 @@ def analyze_sequence(inputs, output, *, reference="previous", uv_scale=1.0, fiel
                     for name in fields}
         last = (0, reader.first.vertices)  # the frame read most recently, reused as a reference
         for p, (r, d) in enumerate(_progress(pairs, progress)):
+            interrupt.check()
             r, d = int(r), int(d)
             if r == EXTERNAL:
                 x_ref = rest.vertices()
