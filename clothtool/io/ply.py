@@ -226,6 +226,9 @@ def parse_ply(data, path="<bytes>", *, reuse=None):
     props = {n: vertex[n] for n in names if n not in ("x", "y", "z")}
     if face_rows is REUSED:
         faces, source = reuse.faces, reuse.face_source
+        if len(vertices) < len(reuse.vertices) and len(faces) and faces.max() >= len(vertices):
+            i = int(source[np.argmax((faces >= len(vertices)).any(axis=1))])
+            raise InputError(f"{path}: face {i} has a vertex index outside 0..{len(vertices) - 1}")
     else:
         faces, source = _triangulate(face_rows, len(vertices), path)
     return PlyMesh(vertices, faces, source, props, header, face_block)
