@@ -25,6 +25,8 @@ Where bit 1, 2 or 4 is set the float fields are NaN.
 import numpy as np
 from numba import njit, prange
 
+from clothtool import numba_setup  # noqa: F401  (threading layer, before the first kernel)
+
 DEGENERATE_TOL = 1e-8
 
 FLAG_REFERENCE_DEGENERATE = np.uint8(1)
@@ -38,35 +40,33 @@ FIELDS = ("F", "C", "U", "R", "strain", "stretch", "directions", "area_ratio", "
 
 @njit(cache=True, inline="always")
 def _edge_matrix(x, i0, i1, i2, tol):
-    """Tangent-frame edge matrix (a, b, c) = D[0,0], D[0,1], D[1,1] of triangle (i0, i1, i2),
-    the frame vectors t1, t2, and a flag (0, degenerate, or non-finite)."""
-    e1 = x[i1] - x[i0]
-    e2 = x[i2] - x[i0]
-    t1 = np.zeros(3)
-    t2 = np.zeros(3)
-    if not (np.all(np.isfinite(e1)) and np.all(np.isfinite(e2))):
-        return 0.0, 0.0, 0.0, t1, t2, FLAG_NONFINITE
-    nx = e1[1] * e2[2] - e1[2] * e2[1]
-    ny = e1[2] * e2[0] - e1[0] * e2[2]
-    nz = e1[0] * e2[1] - e1[1] * e2[0]
+    """Tangent-frame edge matrix of triangle (i0, i1, i2): (a, b, c) = D[0,0], D[0,1], D[1,1],
+    the frame vectors t1 and t2 as six scalars, and a flag (0, degenerate or non-finite).
+    Scalars only: no allocation in the per-triangle loop."""
+    e1x, e1y, e1z = x[i1, 0] - x[i0, 0], x[i1, 1] - x[i0, 1], x[i1, 2] - x[i0, 2]
+    e2x, e2y, e2z = x[i2, 0] - x[i0, 0], x[i2, 1] - x[i0, 1], x[i2, 2] - x[i0, 2]
+    nx = e1y * e2z - e1z * e2y
+    ny = e1z * e2x - e1x * e2z
+    nz = e1x * e2y - e1y * e2x
     area2 = np.sqrt(nx * nx + ny * ny + nz * nz)
-    l1 = e1[0] * e1[0] + e1[1] * e1[1] + e1[2] * e1[2]
-    l2 = e2[0] * e2[0] + e2[1] * e2[1] + e2[2] * e2[2]
-    e3 = e2 - e1
-    l3 = e3[0] * e3[0] + e3[1] * e3[1] + e3[2] * e3[2]
+    l1 = e1x * e1x + e1y * e1y + e1z * e1z
+    l2 = e2x * e2x + e2y * e2y + e2z * e2z
+    l3 = (e2x - e1x) ** 2 + (e2y - e1y) ** 2 + (e2z - e1z) ** 2
+    if not np.isfinite(area2 + l1 + l2 + l3):
+        return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, FLAG_NONFINITE
     if area2 <= tol * max(l1, l2, l3):
-        return 0.0, 0.0, 0.0, t1, t2, FLAG_DEFORMED_DEGENERATE
+        return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, FLAG_DEFORMED_DEGENERATE
     a = np.sqrt(l1)
-    t1[:] = e1 / a
-    n0, n1, n2 = nx / area2, ny / area2, nz / area2
-    t2[0] = n1 * t1[2] - n2 * t1[1]
-    t2[1] = n2 * t1[0] - n0 * t1[2]
-    t2[2] = n0 * t1[1] - n1 * t1[0]
-    b = t1[0] * e2[0] + t1[1] * e2[1] + t1[2] * e2[2]
-    return a, b, area2 / a, t1, t2, np.uint8(0)
+    t1x, t1y, t1z = e1x / a, e1y / a, e1z / a
+    nx, ny, nz = nx / area2, ny / area2, nz / area2
+    t2x = ny * t1z - nz * t1y
+    t2y = nz * t1x - nx * t1z
+    t2z = nx * t1y - ny * t1x
+    b = t1x * e2x + t1y * e2y + t1z * e2z
+    return a, b, area2 / a, t1x, t1y, t1z, t2x, t2y, t2z, np.uint8(0)
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, parallel=True, nogil=True)
 def reference_from_positions(x, faces, tol):
     """Rest-state data of every triangle from 3D positions.
 
@@ -78,7 +78,8 @@ def reference_from_positions(x, faces, tol):
     basis = np.full((m, 2, 3), np.nan)
     flags = np.zeros(m, np.uint8)
     for k in prange(m):
-        a, b, c, t1, t2, flag = _edge_matrix(x, faces[k, 0], faces[k, 1], faces[k, 2], tol)
+        a, b, c, t1x, t1y, t1z, t2x, t2y, t2z, flag = _edge_matrix(
+            x, faces[k, 0], faces[k, 1], faces[k, 2], tol)
         if flag == FLAG_DEFORMED_DEGENERATE:
             flag = FLAG_REFERENCE_DEGENERATE
         flags[k] = flag
@@ -88,12 +89,12 @@ def reference_from_positions(x, faces, tol):
         dinv[k, 0, 1] = -b / (a * c)
         dinv[k, 1, 0] = 0.0
         dinv[k, 1, 1] = 1.0 / c
-        basis[k, 0] = t1
-        basis[k, 1] = t2
+        basis[k, 0, 0], basis[k, 0, 1], basis[k, 0, 2] = t1x, t1y, t1z
+        basis[k, 1, 0], basis[k, 1, 1], basis[k, 1, 2] = t2x, t2y, t2z
     return dinv, basis, flags
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, parallel=True, nogil=True)
 def reference_from_uv(uv, faces, scale, tol):
     """Rest-state data from texture coordinates (Baraff–Witkin): D_r is the uv edge
     matrix [[Δu1, Δu2], [Δv1, Δv2]]·scale itself; the basis rows are (1,0,0), (0,1,0)
@@ -137,12 +138,12 @@ def polar_2x2(f00, f01, f10, f11):
     det = f00 * f11 - f01 * f10
     if det >= 0.0:
         c, s = f00 + f11, f10 - f01
-        h = np.hypot(c, s)
+        h = np.sqrt(c * c + s * s)
         c, s = c / h, s / h
         r00, r01, r10, r11 = c, -s, s, c
     else:
         c, s = f00 - f11, f10 + f01
-        h = np.hypot(c, s)
+        h = np.sqrt(c * c + s * s)
         c, s = c / h, s / h
         r00, r01, r10, r11 = c, s, s, -c
     u00 = r00 * f00 + r10 * f10
@@ -157,7 +158,7 @@ def principal_2x2(u00, u01, u11, absdet):
 
     Returns λ1 ≥ λ2 and the unit eigenvector (v0, v1) of λ1 (that of λ2 is (−v1, v0))."""
     half = 0.5 * (u00 - u11)
-    d = np.hypot(half, u01)
+    d = np.sqrt(half * half + u01 * u01)
     lam1 = 0.5 * (u00 + u11) + d
     lam2 = min(absdet / lam1, lam1) if lam1 > 0.0 else 0.0  # min: rounding when λ1 ≈ λ2
     if d == 0.0:
@@ -166,11 +167,11 @@ def principal_2x2(u00, u01, u11, absdet):
         v0, v1 = half + d, u01
     else:
         v0, v1 = u01, d - half
-    h = np.hypot(v0, v1)
+    h = np.sqrt(v0 * v0 + v1 * v1)
     return lam1, lam2, v0 / h, v1 / h
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, parallel=True, nogil=True)
 def deformation_fields(x, faces, dinv, basis, ref_flags, tol,
                        F, C, U, R, strain, stretch, directions, area_ratio, flags):
     """Fill the per-triangle fields of one pair from deformed positions ``x``.
@@ -181,7 +182,7 @@ def deformation_fields(x, faces, dinv, basis, ref_flags, tol,
     """
     m = faces.shape[0]
     for k in prange(m):
-        a, b, c, t1, t2, flag = _edge_matrix(x, faces[k, 0], faces[k, 1], faces[k, 2], tol)
+        a, b, c, _, _, _, _, _, _, flag = _edge_matrix(x, faces[k, 0], faces[k, 1], faces[k, 2], tol)
         flag |= ref_flags[k]
         if flags.shape[0]:
             flags[k] = flag

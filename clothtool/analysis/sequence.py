@@ -18,7 +18,8 @@ from clothtool.analysis.deformation2d import (DEGENERATE_TOL, FIELDS, allocate_f
                                               reference_from_uv)
 from clothtool.errors import InputError
 from clothtool.io.frames import FrameReader, discover_frames
-from clothtool.io.h5 import AtomicH5, check_output_path, create_pair_dataset, parse_compression
+from clothtool.io.h5 import (AtomicH5, PairWriter, check_output_path, create_pair_dataset,
+                              parse_compression)
 
 REFERENCE_MODES = ("previous", "first", "uv")
 EXTERNAL = -1  # the reference index of pairs against a reference mesh or the uv rest shape
@@ -155,35 +156,43 @@ def analyze_sequence(inputs, output, *, reference="previous", uv_scale=1.0, fiel
     reader = FrameReader(paths)
     rest = _Rest(reader, reference, uv_scale)
     pairs = plan_pairs(len(paths), reference)
-    faces = reader.faces
-    m = len(faces)
+    m = len(reader.faces)
     summary = AnalysisSummary(os.fspath(output), len(paths), len(pairs), m, reader.n_vertices,
                               fields, reference, 0.0)
-    buffers = allocate_fields(m, fields, store)
+
+    def make_buffers():
+        return allocate_fields(m, fields, store)
 
     with AtomicH5(output) as h5:
         _write_header(h5, paths, pairs, rest, reader, reference, uv_scale, command, store)
         group = h5.create_group("face")
         datasets = {name: create_pair_dataset(group, name, len(pairs), (m, *FIELD_SHAPES[name]),
-                                              buffers[name].dtype, h5_compression)
+                                              np.uint8 if name == "flags" else store, h5_compression)
                     for name in fields}
-        last = (0, reader.first.vertices)  # the frame read most recently, reused as a reference
-        for p, (r, d) in enumerate(_progress(pairs, progress)):
-            interrupt.check()
-            r, d = int(r), int(d)
-            if r == EXTERNAL:
-                x_ref = rest.vertices()
-            else:
-                x_ref = last[1] if last[0] == r else reader.positions(r)
-            ref = rest.get(r, x_ref)
-            x = last[1] if last[0] == d else reader.positions(d)
-            last = (d, x)
-            deformation_fields(x, faces, *ref, DEGENERATE_TOL, *(buffers[n] for n in FIELDS))
-            for name in fields:
-                datasets[name][p] = buffers[name]
-            _accumulate(summary, buffers, fields)
+        with PairWriter(datasets, make_buffers) as writer:
+            _stream_pairs(pairs, reader, rest, writer, summary, fields, progress)
     summary.seconds = time.perf_counter() - started
     return summary
+
+
+def _stream_pairs(pairs, reader, rest, writer, summary, fields, progress):
+    """Compute every pair, one frame in memory at a time, handing results to ``writer``."""
+    faces = reader.faces
+    last = (0, reader.first.vertices)  # the frame read most recently, reused as a reference
+    for p, (r, d) in enumerate(_progress(pairs, progress)):
+        interrupt.check()
+        r, d = int(r), int(d)
+        if r == EXTERNAL:
+            x_ref = rest.vertices()
+        else:
+            x_ref = last[1] if last[0] == r else reader.positions(r)
+        ref = rest.get(r, x_ref)
+        x = last[1] if last[0] == d else reader.positions(d)
+        last = (d, x)
+        buffers = writer.buffers()
+        deformation_fields(x, faces, *ref, DEGENERATE_TOL, *(buffers[n] for n in FIELDS))
+        _accumulate(summary, buffers, fields)
+        writer.write(p, buffers)
 
 
 def _write_header(h5, paths, pairs, rest, reader, reference, uv_scale, command, store):

@@ -88,3 +88,47 @@ def create_pair_dataset(group, name, n_pairs, item_shape, dtype, compression):
     chunks = (1, rows, *item_shape[1:])
     return group.create_dataset(name, shape=(n_pairs, *item_shape), dtype=dtype,
                                 chunks=chunks, **compression)
+
+
+class PairWriter:
+    """Writes each pair's arrays on a background thread while the next pair is computed.
+
+    Double-buffered: :meth:`buffers` returns a set of arrays that is not being written
+    (waiting for the write that used it two pairs ago); :meth:`write` queues it. The
+    numba kernels release the GIL, so computing pair p+1 overlaps writing pair p.
+    Errors of the writer thread are raised in the caller at the next call or at exit.
+    """
+
+    def __init__(self, datasets, make_buffers):
+        from concurrent.futures import ThreadPoolExecutor
+
+        self.datasets = datasets
+        self._sets = [make_buffers(), make_buffers()]
+        self._pending = [None, None]
+        self._turn = 0
+        self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="clothtool-h5")
+
+    def buffers(self):
+        pending = self._pending[self._turn]
+        if pending is not None:
+            pending.result()
+        return self._sets[self._turn]
+
+    def write(self, index, buffers):
+        self._pending[self._turn] = self._pool.submit(self._write, index, buffers)
+        self._turn ^= 1
+
+    def _write(self, index, buffers):
+        for name, dataset in self.datasets.items():
+            dataset[index] = buffers[name]
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, exc_type, exc, tb):
+        self._pool.shutdown(wait=True, cancel_futures=exc_type is not None)
+        if exc_type is None:
+            for pending in self._pending:
+                if pending is not None:
+                    pending.result()
+        return False

@@ -1,0 +1,35 @@
+"""Run every benchmark module's ``run(out_dir)`` and collect the tables under bench-results/.
+
+    python -m benchmarks                 # all
+    python -m benchmarks analyze sim     # only bench_analyze.py and bench_sim.py
+"""
+
+import importlib
+import pathlib
+import sys
+import time
+
+
+def main(argv):
+    out_dir = pathlib.Path("bench-results")
+    out_dir.mkdir(exist_ok=True)
+    here = pathlib.Path(__file__).parent
+    names = sorted(p.stem for p in here.glob("bench_*.py"))
+    if argv:
+        names = [n for n in names if n.removeprefix("bench_") in argv]
+    for name in names:
+        started = time.perf_counter()
+        print(f"== {name}", flush=True)
+        importlib.import_module(f"benchmarks.{name}").run(out_dir)
+        print(f"== {name} done in {time.perf_counter() - started:.0f} s", flush=True)
+    reports = sorted(out_dir.glob("*.md"))
+    with open(out_dir / "README.md", "w") as fh:
+        fh.write("# Benchmark results\n\nWritten by `make bench`.\n\n")
+        for md in reports:
+            if md.name != "README.md":
+                fh.write(md.read_text() + "\n")
+    print(f"tables in {out_dir}/ (summary: {out_dir / 'README.md'})")
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:])

@@ -1,0 +1,59 @@
+"""Helpers shared by the benchmarks: timing commands, peak memory, Markdown tables."""
+
+import os
+import statistics
+import subprocess
+import sys
+import time
+
+PYTHON = sys.executable
+BIN = os.path.dirname(sys.executable)
+
+
+def clothtool_cmd(*args):
+    return [os.path.join(BIN, "clothtool"), *map(str, args)]
+
+
+def run_timed(cmd, env=None, fresh=None):
+    """Wall time of a command in seconds (fails loudly if the command fails).
+
+    ``fresh``: an output path removed (untimed) before the run, so that no route pays
+    for deleting the previous run's file."""
+    if fresh is not None and os.path.exists(fresh):
+        os.remove(fresh)
+    started = time.perf_counter()
+    subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL, env=env)
+    return time.perf_counter() - started
+
+
+def median_time(cmd, repeat=3, fresh=None):
+    return statistics.median(run_timed(cmd, fresh=fresh) for _ in range(repeat))
+
+
+def peak_rss_mb(cmd):
+    """Peak resident memory (MB) of a command, measured in a fresh wrapper process."""
+    code = ("import resource, subprocess, sys\n"
+            "subprocess.run(sys.argv[1:], check=True, stdout=subprocess.DEVNULL)\n"
+            "print(resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss)")
+    out = subprocess.run([PYTHON, "-c", code, *cmd], check=True, capture_output=True, text=True)
+    return int(out.stdout.strip().splitlines()[-1]) / 1024.0
+
+
+def markdown_table(rows, columns):
+    """rows: list of dicts → a Markdown table with the given columns."""
+    def fmt(v):
+        if isinstance(v, float):
+            return f"{v:.3g}" if abs(v) < 1e4 else f"{v:.3e}"
+        return str(v)
+    lines = ["| " + " | ".join(columns) + " |", "|" + "---|" * len(columns)]
+    lines += ["| " + " | ".join(fmt(r.get(c, "")) for c in columns) + " |" for r in rows]
+    return "\n".join(lines) + "\n"
+
+
+def write_csv(path, rows, columns):
+    import csv
+
+    with open(path, "w", newline="") as fh:
+        w = csv.DictWriter(fh, fieldnames=columns, extrasaction="ignore")
+        w.writeheader()
+        w.writerows(rows)

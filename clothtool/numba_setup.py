@@ -1,0 +1,40 @@
+"""Process-wide numba settings, applied once before the first kernel runs.
+
+Threading layer: numba prefers TBB, then OpenMP, then its own 'workqueue'. OpenMP
+workers spin while they wait; on a 2-core machine shared with the HDF5 writer
+thread (and with other jobs under ``make -j`` or Slurm) that spinning costs more
+CPU than it saves (measured on the 100k-triangle analyze benchmark: 3.0 s of user
+time with OpenMP against 2.0 s with workqueue). So clothtool asks for workqueue
+unless the user chose a layer with ``NUMBA_THREADING_LAYER``.
+
+Start-up: loading numba's CPU target imports ``numba.np.arraymath``, which imports
+``scipy.linalg`` (0.2–0.4 s here) only to decide whether ``np.correlate`` and
+``np.convolve`` may call BLAS. clothtool's kernels use neither, so the target is
+loaded here with that one import hidden; ``np.dot`` and ``np.linalg`` in kernels
+still find BLAS, since their own check runs later, when they are compiled.
+"""
+
+import os
+import sys
+
+import numba
+
+if "NUMBA_THREADING_LAYER" not in os.environ:
+    numba.config.THREADING_LAYER = "workqueue"
+
+
+def _load_cpu_target():
+    from numba.core.registry import cpu_target
+
+    name = "scipy.linalg.cython_blas"
+    hide = name not in sys.modules
+    if hide:
+        sys.modules[name] = None  # makes `import scipy.linalg.cython_blas` raise ImportError
+    try:
+        cpu_target.target_context.refresh()
+    finally:
+        if hide:
+            del sys.modules[name]
+
+
+_load_cpu_target()
