@@ -21,7 +21,8 @@ from clothtool.errors import ClothtoolError
 
 EXIT_CODES_HELP = """\b
 Exit codes: 0 done, 2 bad input, usage or unusable output path,
-            3 numerical failure (a simulation that blew up), 130 interrupted."""
+            3 numerical failure (a simulation that blew up), 130 interrupted,
+            1 internal error (a bug; --debug shows the traceback)."""
 
 
 class ClothtoolGroup(click.Group):

@@ -499,3 +499,10 @@ def test_non_finite_coordinates_are_flagged_not_rejected(tmp_path):
         assert np.all(np.isnan(stretch[p][touched]))
         assert np.all(flags[p][~touched] == 0)
         assert np.all(np.isfinite(stretch[p][~touched]))
+
+
+@pytest.mark.parametrize("args", [["--help"], ["analyze", "--help"]])
+def test_help_documents_the_exit_codes(args):
+    text = " ".join(CliRunner().invoke(main, args).output.split())
+    for code in ("0 done", "2 bad input", "3 numerical failure", "130 interrupted", "1 internal error"):
+        assert code in text
