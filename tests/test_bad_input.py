@@ -364,15 +364,24 @@ def no_frames_given(tmp):
 # ------------------------------------------------------------------ output paths and faults
 
 
+def no_work(*args, **kwargs):
+    raise AssertionError("frames were looked at before the output path was checked")
+
+
+BEFORE_ANY_WORK = {"clothtool.analysis.sequence.discover_frames": no_work}
+
+
 @case
 def output_folder_missing(tmp):
-    return Case([str(sequence(tmp))], "missing", output=tmp / "missing" / "out.h5")
+    return Case([str(sequence(tmp))], "missing", output=tmp / "missing" / "out.h5",
+                patch=BEFORE_ANY_WORK)
 
 
 @case
 def output_is_a_folder(tmp):
     (tmp / "out" / "result.h5").mkdir(parents=True)
-    return Case([str(sequence(tmp))], "result.h5", output=tmp / "out" / "result.h5")
+    return Case([str(sequence(tmp))], "result.h5", output=tmp / "out" / "result.h5",
+                patch=BEFORE_ANY_WORK)
 
 
 @case
@@ -381,7 +390,8 @@ def output_folder_not_writable(tmp):
     real = os.access
     def access(path, mode):  # chmod does not stop root, so pretend
         return False if os.path.abspath(path) == str(tmp / "out") else real(path, mode)
-    return Case([str(sequence(tmp))], "not writable", patch={"clothtool.io.h5.os.access": access})
+    return Case([str(sequence(tmp))], "not writable",
+                patch={"clothtool.io.h5.os.access": access, **BEFORE_ANY_WORK})
 
 
 @case

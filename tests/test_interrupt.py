@@ -82,3 +82,43 @@ def test_a_dropped_interrupt_still_stops_publication(tmp_path, monkeypatch):
         analyze_sequence(folder, out)
     assert out.read_bytes() == PREVIOUS
     assert sorted(p.name for p in tmp_path.iterdir()) == ["out.h5", "seq"]
+
+
+def test_interrupted_ply_write_leaves_the_old_file(tmp_path, monkeypatch):
+    path = tmp_path / "mesh.ply"
+    path.write_bytes(PREVIOUS)
+    vertices, faces = grid(5, 5)
+
+    def interrupted(fh, records):  # after the header is written
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr("clothtool.io.ply._write_ascii_records", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        write_ply(path, vertices, faces, binary=False)
+    monkeypatch.undo()
+    assert path.read_bytes() == PREVIOUS
+    assert [p.name for p in tmp_path.iterdir()] == ["mesh.ply"]
+
+
+def test_failed_close_is_reported_and_cleaned_up(tmp_path, monkeypatch):
+    """A write error that only shows when the HDF5 file is closed (flushing to a full disk)
+    is an InputError naming the output, and nothing is renamed into place."""
+    import h5py
+
+    from clothtool.errors import InputError
+    from clothtool.io.h5 import AtomicH5
+
+    out = tmp_path / "out.h5"
+    out.write_bytes(PREVIOUS)
+    real_close = h5py.File.close
+
+    def full(self):
+        real_close(self)
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(h5py.File, "close", full)
+    with pytest.raises(InputError, match="out.h5: cannot write: No space left on device"):
+        with AtomicH5(out) as f:
+            f["x"] = [1, 2, 3]
+    assert out.read_bytes() == PREVIOUS
+    assert [p.name for p in tmp_path.iterdir()] == ["out.h5"]
