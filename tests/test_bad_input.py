@@ -385,6 +385,26 @@ def output_is_a_folder(tmp):
 
 
 @case
+def output_is_an_input_frame(tmp):
+    folder = sequence(tmp)
+    frame = folder / "frame_1.ply"
+    return Case([str(folder)], "frame_1.ply", output=frame)
+
+
+@case
+def output_is_the_reference_mesh(tmp):
+    write_ply(tmp / "rest.ply", VERTICES, FACES)
+    return Case([str(sequence(tmp))], "rest.ply", ["--reference", str(tmp / "rest.ply")],
+                output=tmp / "rest.ply")
+
+
+@case
+def input_is_not_a_regular_file(tmp):
+    os.mkfifo(tmp / "pipe.ply")
+    return Case([str(tmp / "pipe.ply")], "pipe.ply: not a regular file")
+
+
+@case
 def output_folder_not_writable(tmp):
     (tmp / "out").mkdir()
     real = os.access
@@ -426,8 +446,11 @@ def run(tmp, c, monkeypatch):
     return result, output, time.perf_counter() - started
 
 
-def leftovers(folder):
-    return sorted(p for p in os.listdir(folder)) if folder.is_dir() else []
+def snapshot(folder):
+    """Names and contents of the files in ``folder`` (hidden temporary files included)."""
+    if not folder.is_dir():
+        return {}
+    return {p.name: p.read_bytes() if p.is_file() else "folder" for p in folder.iterdir()}
 
 
 def check(result, c, seconds):
@@ -445,18 +468,18 @@ def check(result, c, seconds):
 @pytest.mark.parametrize("name", sorted(CASES))
 def test_corpus_case_fails_cleanly(tmp_path, monkeypatch, name):
     c = CASES[name](tmp_path)
+    folder = (c.output or tmp_path / "out" / "out.h5").parent
+    before = snapshot(folder)
     result, output, seconds = run(tmp_path, c, monkeypatch)
     check(result, c, seconds)
-    if output.is_dir():
-        return  # the output path is the culprit
-    assert leftovers(output.parent) == [], "output or temporary file left behind"
-    if not output.parent.is_dir():
+    assert snapshot(folder) == before, "output or temporary file left behind"
+    if not folder.is_dir() or output.exists():
         return
     output.write_bytes(PREVIOUS)  # again, over an existing result
+    before = snapshot(folder)
     result, output, seconds = run(tmp_path, c, monkeypatch)
     check(result, c, seconds)
-    assert output.read_bytes() == PREVIOUS
-    assert leftovers(output.parent) == [output.name]
+    assert snapshot(folder) == before, "existing output changed or temporary file left behind"
 
 
 def test_corpus_is_large_enough():

@@ -18,8 +18,8 @@ from clothtool.analysis.deformation2d import (DEGENERATE_TOL, FIELDS, allocate_f
                                               reference_from_uv)
 from clothtool.errors import InputError
 from clothtool.io.frames import FrameReader, discover_frames
-from clothtool.io.h5 import (AtomicH5, PairWriter, check_output_path, create_pair_dataset,
-                              parse_compression)
+from clothtool.io.h5 import (AtomicH5, PairWriter, check_not_an_input, check_output_path,
+                              create_pair_dataset, parse_compression)
 
 REFERENCE_MODES = ("previous", "first", "uv")
 EXTERNAL = -1  # the reference index of pairs against a reference mesh or the uv rest shape
@@ -150,6 +150,7 @@ def analyze_sequence(inputs, output, *, reference="previous", uv_scale=1.0, fiel
     h5_compression = parse_compression(compression)
     check_output_path(output)
     paths = discover_frames(inputs)
+    check_not_an_input(output, [*paths, reference])
     internal = reference in ("previous", "first")
     if internal and len(paths) < 2:
         raise InputError(f"{paths[0]}: only one frame; --reference {reference} needs at least two")

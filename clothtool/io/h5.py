@@ -31,6 +31,15 @@ def check_output_path(path):
         raise InputError(f"{path}: output file is not writable")
 
 
+def check_not_an_input(path, inputs):
+    """Fail when the output would replace one of the ``inputs`` (frames, a reference mesh)."""
+    target = os.path.realpath(path)
+    for item in inputs:
+        if os.path.realpath(item) == target:
+            raise InputError(f"{path}: output path is also an input ({item}); "
+                             "it would be overwritten")
+
+
 def parse_compression(spec):
     """'none' → {} ; 'gzip' or 'gzip=LEVEL' → h5py keyword arguments (with shuffle)."""
     spec = (spec or "none").strip().lower()
