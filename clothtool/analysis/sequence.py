@@ -150,7 +150,7 @@ def analyze_sequence(inputs, output, *, reference="previous", uv_scale=1.0, fiel
     h5_compression = parse_compression(compression)
     check_output_path(output)
     paths = discover_frames(inputs)
-    check_not_an_input(output, [*paths, reference])
+    check_not_an_input(output, paths if reference in REFERENCE_MODES else [*paths, reference])
     internal = reference in ("previous", "first")
     if internal and len(paths) < 2:
         raise InputError(f"{paths[0]}: only one frame; --reference {reference} needs at least two")
