@@ -5,6 +5,7 @@ file, and an existing output byte-identical."""
 
 import os
 import time
+import tracemalloc
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -539,3 +540,14 @@ def test_help_documents_the_exit_codes(args):
     text = " ".join(CliRunner().invoke(main, args).output.split())
     for code in ("0 done", "2 bad input", "3 numerical failure", "130 interrupted", "1 internal error"):
         assert code in text
+
+
+def test_a_large_file_that_is_not_a_ply_is_not_read_whole(tmp_path):
+    big = tmp_path / "video.ply"
+    with open(big, "wb") as fh:
+        fh.truncate(1 << 30)  # 1 GiB, sparse
+    tracemalloc.start()
+    with pytest.raises(InputError, match="video.ply: not a PLY file"):
+        read_ply(big)
+    assert tracemalloc.get_traced_memory()[1] < 1 << 20
+    tracemalloc.stop()

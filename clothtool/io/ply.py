@@ -36,6 +36,7 @@ _FORMATS = {"ascii": None, "binary_little_endian": "<", "binary_big_endian": ">"
 UV_NAMES = (("s", "t"), ("u", "v"), ("texture_u", "texture_v"), ("texture_s", "texture_t"))
 FACE_LIST_NAMES = ("vertex_indices", "vertex_index")
 MAX_HEADER_BYTES = 1 << 20
+_PROBE_BYTES = 4096  # read first, so that a large file that is not a PLY is not read whole
 REUSED = object()  # marks a face block taken from ``reuse`` without parsing
 _END_HEADER = re.compile(rb"(?:^|\n)end_header[ \t\r]*\n")  # the line, not a word in a comment
 _END_HEADER_LINE = re.compile(rb"(?:^|\n)end_header[ \t\r]*$")
@@ -197,7 +198,12 @@ def read_ply(path, *, reuse=None):
     path = os.fspath(path)
     try:
         with open(path, "rb") as fh:
-            data = fh.read()
+            data = fh.read(_PROBE_BYTES)
+            if len(data) == _PROBE_BYTES:  # a large file: is it a PLY before reading it all?
+                if not data.startswith(b"ply"):
+                    parse_header(data, path)  # raises "not a PLY file"
+                fh.seek(0)
+                data = fh.read()
     except IsADirectoryError:
         raise InputError(f"{path}: is a folder, not a PLY file") from None
     except OSError as exc:
