@@ -110,11 +110,14 @@ Examples:
   clothtool analyze sim/ -o out.h5 --reference uv --uv-scale 0.5
       rest shape from the s,t / u,v texture coordinates (Baraff-Witkin)
   clothtool analyze frames/ -o out.h5 --reference rest.ply --dtype float64
+  clothtool analyze frames/ -o part1.h5 --pairs 100:200
+      only pairs 100..199; join the parts with `clothtool merge`
 
 \b
 Fields (--fields, comma separated; default all):
   F C U R strain stretch directions area_ratio flags
 Read the result with h5py:  h5py.File('out.h5')['face/stretch'][k]  (pair k)
+Open out.xdmf (written beside out.h5) in ParaView for the deformed mesh over time.
 
 """ + EXIT_CODES_HELP
 
@@ -134,8 +137,14 @@ Read the result with h5py:  h5py.File('out.h5')['face/stretch'][k]  (pair k)
               show_default=True, help="Storage type of float fields (computation is float64).")
 @click.option("--compression", default="none", show_default=True, metavar="none|gzip[=LEVEL]",
               help="HDF5 compression of the field datasets (gzip is readable by MATLAB and ParaView).")
+@click.option("--vertex-average", default="", metavar="NAMES",
+              help="Face fields to also store per vertex (area-weighted average over the "
+                   "incident triangles) as /vertex/NAME_avg, e.g. stretch,area_ratio.")
+@click.option("--pairs", "pair_slice", default=None, metavar="START:STOP",
+              help="Compute only pairs START..STOP-1 (for splitting a sequence over machines).")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary.")
-def analyze(inputs, output, reference, uv_scale, fields, dtype, compression, quiet):
+def analyze(inputs, output, reference, uv_scale, fields, dtype, compression, vertex_average,
+            pair_slice, quiet):
     """Per-triangle deformation of a PLY sequence, written to HDF5.
 
     FRAMES is a folder of .ply files, a glob, or a list of files; they are
@@ -150,9 +159,148 @@ def analyze(inputs, output, reference, uv_scale, fields, dtype, compression, qui
         list(inputs), output, reference=reference, uv_scale=uv_scale,
         fields=fields, dtype=dtype, compression=compression,
         progress=_progress_enabled(quiet), command=" ".join(["clothtool", *sys.argv[1:]]),
+        pairs=pair_slice, vertex_average=vertex_average,
     )
     if not quiet:
+        from clothtool.results.xdmf import xdmf_path
+
         click.echo(summary.describe())
+        click.echo(f"  for ParaView: {xdmf_path(output)}; overview: clothtool info {output}")
+
+
+
+INFO_EPILOG = """\b
+Examples:
+  clothtool info out.h5
+  clothtool info out.h5 --csv | awk -F, 'NR > 1 && $5 > 1.05'      pairs with λ1 median > 1.05
+
+\b
+CSV columns: pair,reference,deformed, lambda1|lambda2|J _p5,_p50,_p95, compressed,stretched
+(fractions of triangles with λ2 < 1, λ1 > 1), flagged and per-flag counts.
+
+""" + EXIT_CODES_HELP
+
+
+@main.command(epilog=INFO_EPILOG)
+@click.argument("result", type=click.Path(dir_okay=False))
+@click.option("--csv", "as_csv", is_flag=True, help="Print only the per-pair summary, as CSV.")
+def info(result, as_csv):
+    """What is in an analysis result, and a per-pair summary of its stretches."""
+    from clothtool.results.info import describe, summary_csv
+
+    click.echo(summary_csv(result) if as_csv else describe(result), nl=not as_csv)
+
+
+EXPORT_EPILOG = """\b
+Examples:
+  clothtool export out.h5 --pair 10 -o pair10.ply                 λ1 (stretch component 0)
+  clothtool export out.h5 --pair 10 --field stretch --component 1 -o lambda2.ply
+  clothtool export out.h5 --field area_ratio --range 0.9:1.1 -o J.ply
+  clothtool export out.h5 --field stretch_avg -o smooth.ply       a /vertex field
+
+\b
+Components are row-major: stretch 0 = λ1, 1 = λ2; 2×2 tensors 0 = xx, 1 = xy, 2 = yx, 3 = yy.
+
+""" + EXIT_CODES_HELP
+
+
+@main.command(epilog=EXPORT_EPILOG)
+@click.argument("result", type=click.Path(dir_okay=False))
+@click.option("-o", "--output", required=True, type=click.Path(dir_okay=False),
+              help="PLY file to write.")
+@click.option("--pair", default=0, show_default=True, type=int,
+              help="Pair index (as in /pairs and `clothtool info`).")
+@click.option("--field", default="stretch", show_default=True,
+              help="A /face or /vertex dataset of the result.")
+@click.option("--component", default=0, show_default=True, type=int,
+              help="Component of a field with several (row-major).")
+@click.option("--range", "color_range", default=None, metavar="LO:HI",
+              help="Values mapped to the ends of the colour scale [default: the pair's min:max].")
+@click.option("--vertex-colors/--no-vertex-colors", default=True, show_default=True,
+              help="Also colour the vertices (area-weighted average of a face field), for Blender.")
+@click.option("--ascii", is_flag=True, help="Write ascii PLY instead of binary.")
+def export(result, output, pair, field, component, color_range, vertex_colors, ascii):
+    """The deformed mesh of one pair as a PLY coloured by a field (viridis).
+
+    The field is written as a face (or vertex) property and as red/green/blue
+    colours, which MeshLab and Blender display directly.
+    """
+    from clothtool.results.export import export_ply, parse_range
+
+    name, (lo, hi) = export_ply(result, output, pair=pair, field=field, component=component,
+                                color_range=parse_range(color_range), vertex_colors=vertex_colors,
+                                binary=not ascii)
+    click.echo(f"wrote {output}: pair {pair}, {name} coloured over [{lo:.6g}, {hi:.6g}]")
+
+
+
+MERGE_EPILOG = """\b
+Examples:
+  clothtool analyze frames/ -o part0.h5 --pairs 0:500      # on one machine
+  clothtool analyze frames/ -o part1.h5 --pairs 500:1000   # on another
+  clothtool merge part*.h5 -o all.h5                       # equal to one run over 0:1000
+
+""" + EXIT_CODES_HELP
+
+
+@main.command(epilog=MERGE_EPILOG)
+@click.argument("parts", nargs=-1, required=True, type=click.Path(dir_okay=False))
+@click.option("-o", "--output", required=True, type=click.Path(dir_okay=False),
+              help="HDF5 file to write (an XDMF is written beside it).")
+def merge(parts, output):
+    """Join results computed in slices (analyze --pairs) into one result.
+
+    PARTS are slices of the same analysis, in any order; together they must cover
+    consecutive pairs without gap or overlap.
+    """
+    from clothtool.results.merge import merge_results
+
+    offset, n = merge_results(list(parts), output, command=" ".join(["clothtool", *sys.argv[1:]]))
+    click.echo(f"wrote {output}: pairs {offset}:{offset + n} from {len(parts)} parts")
+
+
+
+PLOT_EPILOG = """\b
+Examples:
+  clothtool plot out.h5 -o fig.png
+  clothtool plot out.h5 -o fig.pdf --pair 12 --field area_ratio
+
+Needs matplotlib: pip install 'clothtool[plot]'
+
+""" + EXIT_CODES_HELP
+
+
+@main.command(epilog=PLOT_EPILOG)
+@click.argument("result", type=click.Path(dir_okay=False))
+@click.option("-o", "--output", required=True, type=click.Path(dir_okay=False),
+              help="Image to write (.png, .pdf, .svg).")
+@click.option("--pair", default=None, type=int,
+              help="Pair of the mesh map [default: the one with the largest λ1 95th percentile].")
+@click.option("--field", default=None, help="Field of the mesh map [default: stretch].")
+@click.option("--component", default=0, show_default=True, type=int,
+              help="Component of the mapped field (stretch: 0 = λ1, 1 = λ2).")
+@click.option("--dpi", default=120, show_default=True, type=int, help="Resolution of raster images.")
+def plot(result, output, pair, field, component, dpi):
+    """An overview figure: stretch and area-ratio percentiles over the sequence, histograms,
+    and one pair's field drawn on the deformed mesh."""
+    from clothtool.results.plot import plot_result
+
+    drawn = plot_result(result, output, pair=pair, field=field, component=component, dpi=dpi)
+    click.echo(f"wrote {output} (mesh map: pair {drawn})")
+
+
+
+@main.command("init-config")
+def init_config():
+    """Print a commented default simulation config (spec §5).
+
+    \b
+      clothtool init-config > config.yaml
+      clothtool simulate config.yaml
+    """
+    from clothtool.config_tools import DEFAULT_CONFIG
+
+    click.echo(DEFAULT_CONFIG, nl=False)
 
 
 if __name__ == "__main__":  # pragma: no cover

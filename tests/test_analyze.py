@@ -127,7 +127,7 @@ def test_failure_keeps_existing_output(tmp_path):
     with pytest.raises(clothtool.InputError, match="frame_5.ply"):
         clothtool.analyze_sequence(tmp_path / "seq", out)
     assert out.read_bytes() == before
-    assert sorted(os.listdir(tmp_path)) == ["out.h5", "seq"]
+    assert sorted(os.listdir(tmp_path)) == ["out.h5", "out.xdmf", "seq"]
 
 
 def test_uv_reference_without_texture_coordinates(tmp_path):

@@ -20,6 +20,10 @@ from clothtool.errors import InputError
 from clothtool.io.frames import FrameReader, discover_frames
 from clothtool.io.h5 import (AtomicH5, PairWriter, check_not_an_input, check_output_path,
                               create_pair_dataset, parse_compression)
+from clothtool.results.extras import NEEDED, PairExtras
+from clothtool.results.slices import parse_pair_slice
+from clothtool.results.vertex_average import parse_vertex_average
+from clothtool.results.xdmf import write_xdmf, xdmf_path
 
 REFERENCE_MODES = ("previous", "first", "uv")
 EXTERNAL = -1  # the reference index of pairs against a reference mesh or the uv rest shape
@@ -134,13 +138,20 @@ def plan_pairs(n_frames, reference):
 
 
 def analyze_sequence(inputs, output, *, reference="previous", uv_scale=1.0, fields="all",
-                     dtype="float32", compression="none", progress=False, command=None):
+                     dtype="float32", compression="none", progress=False, command=None,
+                     pairs=None, vertex_average=None):
     """Analyse a PLY sequence and write the per-triangle fields to ``output`` (HDF5, spec §4).
 
     ``inputs``: a folder, a glob, a file or a list of them (natural order).
     ``reference``: 'previous' (pairs (i, i+1)), 'first' (pairs (0, i)), 'uv' (the
     texture coordinates times ``uv_scale``) or the path of a PLY mesh.
     ``fields``: 'all' or names from :data:`FIELDS`; only those are computed and stored.
+    ``pairs``: 'START:STOP' or (start, stop): compute only that slice of the pairs
+    (:mod:`clothtool.results.slices`). ``vertex_average``: face fields to also store as
+    area-weighted vertex averages ``/vertex/<name>_avg``
+    (:mod:`clothtool.results.vertex_average`). Always stored: ``/frame_vertices`` and
+    ``/summary`` (:mod:`clothtool.results.extras`); ``out.xdmf`` is written beside
+    ``out.h5`` (:mod:`clothtool.results.xdmf`).
     Returns an :class:`AnalysisSummary`. Raises :class:`~clothtool.errors.InputError`
     on bad input, before writing anything.
     """
@@ -148,7 +159,9 @@ def analyze_sequence(inputs, output, *, reference="previous", uv_scale=1.0, fiel
     fields = parse_fields(fields)
     store = parse_dtype(dtype)
     h5_compression = parse_compression(compression)
+    averaged = parse_vertex_average(vertex_average)
     check_output_path(output)
+    xdmf = xdmf_path(output)
     paths = discover_frames(inputs)
     check_not_an_input(output, paths if reference in REFERENCE_MODES else [*paths, reference])
     internal = reference in ("previous", "first")
@@ -156,27 +169,40 @@ def analyze_sequence(inputs, output, *, reference="previous", uv_scale=1.0, fiel
         raise InputError(f"{paths[0]}: only one frame; --reference {reference} needs at least two")
     reader = FrameReader(paths)
     rest = _Rest(reader, reference, uv_scale)
-    pairs = plan_pairs(len(paths), reference)
+    all_pairs = plan_pairs(len(paths), reference)
+    offset, stop = parse_pair_slice(pairs, len(all_pairs))
+    pairs = all_pairs[offset:stop]
     m = len(reader.faces)
     summary = AnalysisSummary(os.fspath(output), len(paths), len(pairs), m, reader.n_vertices,
                               fields, reference, 0.0)
 
     def make_buffers():
-        return allocate_fields(m, fields, store)
+        return {**allocate_fields(m, {*fields, *averaged, *NEEDED}, store), **extras.buffers()}
 
     with AtomicH5(output) as h5:
         _write_header(h5, paths, pairs, rest, reader, reference, uv_scale, command, store)
+        h5.attrs["pair_offset"] = offset
+        h5.attrs["pairs_total"] = len(all_pairs)
+        extras = PairExtras(h5, pairs, offset, len(paths), reader.faces, reader.n_vertices,
+                            {name: FIELD_SHAPES[name] for name in averaged}, store, h5_compression)
         group = h5.create_group("face")
         datasets = {name: create_pair_dataset(group, name, len(pairs), (m, *FIELD_SHAPES[name]),
                                               np.uint8 if name == "flags" else store, h5_compression)
                     for name in fields}
-        with PairWriter(datasets, make_buffers) as writer:
-            _stream_pairs(pairs, reader, rest, writer, summary, fields, progress)
+        with PairWriter({**datasets, **extras.datasets}, make_buffers) as writer:
+            _stream_pairs(pairs, reader, rest, writer, summary, fields, progress, extras)
+        extras.close()
+    try:
+        write_xdmf(output, xdmf)
+    except BaseException:
+        if os.path.exists(xdmf):  # never leave an XDMF that describes an older result
+            os.remove(xdmf)
+        raise
     summary.seconds = time.perf_counter() - started
     return summary
 
 
-def _stream_pairs(pairs, reader, rest, writer, summary, fields, progress):
+def _stream_pairs(pairs, reader, rest, writer, summary, fields, progress, extras):
     """Compute every pair, one frame in memory at a time, handing results to ``writer``."""
     faces = reader.faces
     last = (0, reader.first.vertices)  # the frame read most recently, reused as a reference
@@ -190,8 +216,11 @@ def _stream_pairs(pairs, reader, rest, writer, summary, fields, progress):
         ref = rest.get(r, x_ref)
         x = last[1] if last[0] == d else reader.positions(d)
         last = (d, x)
+        extras.frame(r, x_ref)
+        extras.frame(d, x)
         buffers = writer.buffers()
         deformation_fields(x, faces, *ref, DEGENERATE_TOL, *(buffers[n] for n in FIELDS))
+        extras.pair(p, buffers, ref[0])
         _accumulate(summary, buffers, fields)
         writer.write(p, buffers)
 

@@ -89,14 +89,15 @@ class AtomicH5:
         return InputError(f"{self.path}: cannot write: {exc.strerror or exc}")
 
 
-def create_pair_dataset(group, name, n_pairs, item_shape, dtype, compression):
-    """A (P, *item_shape) dataset chunked as (1, rows, ...) with a chunk ≤ CHUNK_BYTES."""
+def create_pair_dataset(group, name, n_pairs, item_shape, dtype, compression, fillvalue=None):
+    """A (P, *item_shape) dataset chunked as (1, rows, ...) with a chunk ≤ CHUNK_BYTES;
+    unwritten elements read as ``fillvalue``."""
     item_shape = tuple(item_shape)
     row_bytes = int(np.prod(item_shape[1:], dtype=np.int64)) * np.dtype(dtype).itemsize
     rows = max(1, min(item_shape[0], CHUNK_BYTES // max(row_bytes, 1))) if item_shape[0] else 1
     chunks = (1, rows, *item_shape[1:])
     return group.create_dataset(name, shape=(n_pairs, *item_shape), dtype=dtype,
-                                chunks=chunks, **compression)
+                                chunks=chunks, fillvalue=fillvalue, **compression)
 
 
 class PairWriter:

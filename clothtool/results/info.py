@@ -1,0 +1,99 @@
+"""``clothtool info``: what is in an analysis result, and its per-pair summary as a table or CSV."""
+
+import csv
+import io
+import os
+
+import numpy as np
+
+from clothtool.errors import InputError
+from clothtool.results.summary import COLUMNS, FLAG_BITS, INT_COLUMNS, TOL, read_summary
+
+REFERENCE_PAIRS = {"previous": "pairs (i, i+1)", "first": "pairs (0, i)", "uv": "uv rest shape"}
+TABLE = (("pair", "pair", "{:d}"), ("reference", "ref", "{:d}"), ("deformed", "def", "{:d}"),
+         ("lambda1_p5", "λ1 p5", "{:.4f}"), ("lambda1_p50", "λ1 p50", "{:.4f}"),
+         ("lambda1_p95", "λ1 p95", "{:.4f}"), ("lambda2_p5", "λ2 p5", "{:.4f}"),
+         ("lambda2_p50", "λ2 p50", "{:.4f}"), ("lambda2_p95", "λ2 p95", "{:.4f}"),
+         ("J_p5", "J p5", "{:.4f}"), ("J_p50", "J p50", "{:.4f}"), ("J_p95", "J p95", "{:.4f}"),
+         ("compressed", "compr.", "{:.1%}"), ("stretched", "stretch.", "{:.1%}"),
+         ("flagged", "flagged", "{:d}"))
+
+
+def open_result(path):
+    """An open ``h5py.File`` of a clothtool result, or InputError naming the file."""
+    import h5py
+
+    path = os.fspath(path)
+    if not os.path.isfile(path):
+        raise InputError(f"{path}: no such file")
+    try:
+        h5 = h5py.File(path, "r")
+    except OSError:
+        raise InputError(f"{path}: not an HDF5 file") from None
+    if "pairs" not in h5 or "mesh" not in h5:
+        h5.close()
+        raise InputError(f"{path}: not a clothtool analysis result (no /pairs or /mesh)")
+    return h5
+
+
+def _text(value):
+    return value.decode() if isinstance(value, bytes) else str(value)
+
+
+def describe(path):
+    """Multi-line description of the result at ``path`` followed by its summary table."""
+    with open_result(path) as h5:
+        attrs = h5.attrs
+        frames = [_text(f) for f in h5["frames"][:]]
+        pairs = h5["pairs"]
+        reference = _text(attrs.get("reference", "?"))
+        offset, total = int(attrs.get("pair_offset", 0)), int(attrs.get("pairs_total", len(pairs)))
+        span = (f"{len(pairs)} (all)" if len(pairs) == total else
+                f"{len(pairs)} of {total} (slice {offset}:{offset + len(pairs)})")
+        lines = [f"{path}: clothtool {_text(attrs.get('clothtool_version', '?'))} result, "
+                 f"created {_text(attrs.get('created', '?'))}",
+                 f"  command:   {_text(attrs.get('command', '?'))}",
+                 f"  reference: {reference}"
+                 + (f" ({REFERENCE_PAIRS[reference]})" if reference in REFERENCE_PAIRS else ""),
+                 f"  frames:    {len(frames)}"
+                 + (f" ({frames[0]} … {os.path.basename(frames[-1])})" if frames else ""),
+                 f"  pairs:     {span}",
+                 f"  mesh:      {h5['mesh/faces'].shape[0]} triangles, "
+                 f"{h5['mesh/vertices'].shape[0]} vertices, stored as {_text(attrs.get('dtype', '?'))}"]
+        for group in ("face", "vertex", "edge"):
+            if group in h5:
+                items = ", ".join(f"{name} {'×'.join(map(str, ds.shape[2:])) or 'scalar'}"
+                                  for name, ds in h5[group].items())
+                lines.append(f"  {group + ':':<10} {items}")
+        summary = read_summary(h5)
+    flagged = ", ".join(f"{int(summary[name].sum())} {name.replace('_', ' ')}"
+                        for name, _ in FLAG_BITS)
+    lines.append(f"  flagged:   {int(summary['flagged'].sum())} triangle-pairs ({flagged})")
+    lines += ["", "per pair: percentiles of the principal stretches λ1 ≥ λ2 and the area ratio J; "
+              f"compr./stretch. = fraction of triangles with λ2 < 1 − {TOL:g} / λ1 > 1 + {TOL:g}"]
+    lines.append(_table(summary))
+    return "\n".join(lines)
+
+
+def _table(summary):
+    cells = [[head for _, head, _ in TABLE]]
+    for i in range(len(summary["pair"])):
+        cells.append([fmt.format(summary[col][i].item()) if np.isfinite(summary[col][i]) else "nan"
+                      for col, _, fmt in TABLE])
+    widths = [max(len(row[j]) for row in cells) for j in range(len(TABLE))]
+    return "\n".join("  ".join(c.rjust(w) for c, w in zip(row, widths)) for row in cells)
+
+
+def summary_csv(path):
+    """The ``/summary`` of the result at ``path`` as CSV text: a header row of
+    :data:`~clothtool.results.summary.COLUMNS`, then one row per pair (floats in full
+    precision)."""
+    with open_result(path) as h5:
+        summary = read_summary(h5)
+    out = io.StringIO()
+    writer = csv.writer(out, lineterminator="\n")
+    writer.writerow(COLUMNS)
+    for i in range(len(summary["pair"])):
+        writer.writerow([int(summary[c][i]) if c in INT_COLUMNS else repr(float(summary[c][i]))
+                         for c in COLUMNS])
+    return out.getvalue()
