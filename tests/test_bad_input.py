@@ -431,6 +431,14 @@ def internal_bug(tmp):
                 patch={"clothtool.analysis.sequence.deformation_fields": bug})
 
 
+@case
+def sidecar_fails_after_the_hdf5_is_complete(tmp):
+    def bug(h5, name):
+        raise KeyError("a bug in the XDMF writer")
+    return Case([str(sequence(tmp))], "a bug in the XDMF writer", code=1,
+                patch={"clothtool.analysis.sequence.xdmf_text": bug})
+
+
 # ------------------------------------------------------------------ the checks
 
 
@@ -476,7 +484,8 @@ def test_corpus_case_fails_cleanly(tmp_path, monkeypatch, name):
     assert snapshot(folder) == before, "output or temporary file left behind"
     if not folder.is_dir() or output.exists():
         return
-    output.write_bytes(PREVIOUS)  # again, over an existing result
+    output.write_bytes(PREVIOUS)  # again, over an existing result and its XDMF
+    output.with_suffix(".xdmf").write_bytes(PREVIOUS)
     before = snapshot(folder)
     result, output, seconds = run(tmp_path, c, monkeypatch)
     check(result, c, seconds)

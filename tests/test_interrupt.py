@@ -39,6 +39,7 @@ def _default_sigint():
 def test_interrupt_mid_write_leaves_nothing(tmp_path, long_sequence, signum):
     out = tmp_path / "out.h5"
     out.write_bytes(PREVIOUS)
+    (tmp_path / "out.xdmf").write_bytes(PREVIOUS)
     proc = subprocess.Popen([sys.executable, "-m", "clothtool.cli", "analyze", str(long_sequence),
                              "-o", str(out)], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                             preexec_fn=_default_sigint)
@@ -60,8 +61,9 @@ def test_interrupt_mid_write_leaves_nothing(tmp_path, long_sequence, signum):
     assert proc.returncode == 130, stderr
     assert stderr.decode() == "clothtool: interrupted\n"
     assert b"Traceback" not in stderr + stdout
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["out.h5"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["out.h5", "out.xdmf"]
     assert out.read_bytes() == PREVIOUS
+    assert (tmp_path / "out.xdmf").read_bytes() == PREVIOUS
 
 
 def test_a_dropped_interrupt_still_stops_publication(tmp_path, monkeypatch):

@@ -23,7 +23,7 @@ from clothtool.io.h5 import (AtomicH5, PairWriter, check_not_an_input, check_out
 from clothtool.results.extras import NEEDED, PairExtras
 from clothtool.results.slices import parse_pair_slice
 from clothtool.results.vertex_average import parse_vertex_average
-from clothtool.results.xdmf import write_xdmf, xdmf_path
+from clothtool.results.xdmf import xdmf_path, xdmf_text
 
 REFERENCE_MODES = ("previous", "first", "uv")
 EXTERNAL = -1  # the reference index of pairs against a reference mesh or the uv rest shape
@@ -179,7 +179,8 @@ def analyze_sequence(inputs, output, *, reference="previous", uv_scale=1.0, fiel
     def make_buffers():
         return {**allocate_fields(m, {*fields, *averaged, *NEEDED}, store), **extras.buffers()}
 
-    with AtomicH5(output) as h5:
+    atomic = AtomicH5(output)
+    with atomic as h5:
         _write_header(h5, paths, pairs, rest, reader, reference, uv_scale, command, store)
         h5.attrs["pair_offset"] = offset
         h5.attrs["pairs_total"] = len(all_pairs)
@@ -192,12 +193,7 @@ def analyze_sequence(inputs, output, *, reference="previous", uv_scale=1.0, fiel
         with PairWriter({**datasets, **extras.datasets}, make_buffers) as writer:
             _stream_pairs(pairs, reader, rest, writer, summary, fields, progress, extras)
         extras.close()
-    try:
-        write_xdmf(output, xdmf)
-    except BaseException:
-        if os.path.exists(xdmf):  # never leave an XDMF that describes an older result
-            os.remove(xdmf)
-        raise
+        atomic.add_sidecar(xdmf, xdmf_text(h5, os.path.basename(output)))  # renamed with it
     summary.seconds = time.perf_counter() - started
     return summary
 

@@ -23,10 +23,11 @@ def remove_quietly(path):
         os.remove(path)
 
 
-def finish(tmp, path, ok, close=None):
-    """End an atomic write: call ``close()``, then rename ``tmp`` to ``path`` if ``ok``
-    and closing worked; otherwise remove ``tmp``. Closing errors after a failure are
-    ignored (the first error is the one worth reporting)."""
+def finish(renames, ok, close=None):
+    """End an atomic write: call ``close()``, then, if ``ok`` and closing worked, rename
+    each (temporary, final) path of ``renames`` in order; otherwise remove the temporary
+    files. Closing errors after a failure are ignored (the first error is the one worth
+    reporting)."""
     with interrupt.deferred():
         try:
             if close is not None:
@@ -37,9 +38,11 @@ def finish(tmp, path, ok, close=None):
                         raise
             if ok:
                 interrupt.check()
-                os.replace(tmp, path)
+                for tmp, path in renames:
+                    os.replace(tmp, path)
         finally:
-            remove_quietly(tmp)
+            for tmp, _ in renames:
+                remove_quietly(tmp)
 
 
 @contextlib.contextmanager
@@ -49,6 +52,6 @@ def atomic_path(path):
     try:
         yield tmp
     except BaseException:
-        finish(tmp, path, ok=False)
+        finish([(tmp, path)], ok=False)
         raise
-    finish(tmp, path, ok=True)
+    finish([(tmp, path)], ok=True)

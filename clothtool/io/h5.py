@@ -56,13 +56,15 @@ def parse_compression(spec):
 
 class AtomicH5:
     """``with AtomicH5(path) as f:`` gives an ``h5py.File`` on a temporary name that
-    becomes ``path`` only if the block completes. An ``OSError`` while writing (a full
-    disk, say) becomes an :class:`InputError` naming ``path``."""
+    becomes ``path`` only if the block completes; :meth:`add_sidecar` files (an XDMF)
+    are renamed with it, right after it, or removed with it. An ``OSError`` while
+    writing (a full disk, say) becomes an :class:`InputError` naming ``path``."""
 
     def __init__(self, path):
         self.path = os.path.abspath(os.fspath(path))
         self.tmp = temporary_name(self.path)
         self.file = None
+        self._renames = [(self.tmp, self.path)]
 
     def __enter__(self):
         import h5py
@@ -70,15 +72,23 @@ class AtomicH5:
         try:
             self.file = h5py.File(self.tmp, "w")
         except BaseException as exc:
-            finish(self.tmp, self.path, ok=False)
+            finish(self._renames, ok=False)
             if isinstance(exc, OSError):
                 raise self._write_error(exc) from exc
             raise
         return self.file
 
+    def add_sidecar(self, path, text):
+        """Write ``text`` to a temporary name beside ``path`` now; it becomes ``path``
+        when the HDF5 file is complete."""
+        tmp = temporary_name(path)
+        self._renames.append((tmp, os.path.abspath(os.fspath(path))))
+        with open(tmp, "w", encoding="utf-8") as fh:
+            fh.write(text)
+
     def __exit__(self, exc_type, exc, tb):
         try:
-            finish(self.tmp, self.path, ok=exc_type is None, close=self.file.close)
+            finish(self._renames, ok=exc_type is None, close=self.file.close)
         except OSError as error:
             raise self._write_error(error) from error
         if isinstance(exc, OSError) and not isinstance(exc, ClothtoolError):
