@@ -560,3 +560,36 @@ def test_a_large_file_that_is_not_a_ply_is_not_read_whole(tmp_path):
         read_ply(big)
     assert tracemalloc.get_traced_memory()[1] < 1 << 20
     tracemalloc.stop()
+
+
+@pytest.fixture(scope="module")
+def result_file(tmp_path_factory):
+    """A small valid analysis result, and a file that is not HDF5."""
+    tmp = tmp_path_factory.mktemp("result")
+    out = tmp / "r.h5"
+    assert CliRunner().invoke(main, ["analyze", str(sequence(tmp)), "-o", str(out)]).exit_code == 0
+    (tmp / "bad.h5").write_bytes(b"not HDF5 at all")
+    return tmp
+
+
+@pytest.mark.parametrize("args,culprit", [
+    (["info", "{dir}/bad.h5"], "bad.h5: not an HDF5 file"),
+    (["info", "{dir}/missing.h5"], "missing.h5"),
+    (["export", "{dir}/bad.h5", "-o", "{out}/x.ply"], "bad.h5"),
+    (["export", "{dir}/r.h5", "--pair", "99", "-o", "{out}/x.ply"], "99"),
+    (["export", "{dir}/r.h5", "--field", "bogus", "-o", "{out}/x.ply"], "bogus"),
+    (["plot", "{dir}/bad.h5", "-o", "{out}/x.png"], "bad.h5"),
+    (["plot", "{dir}/r.h5", "-o", "{out}/x.xyz"], "unknown image format 'xyz'"),
+    (["merge", "{dir}/bad.h5", "-o", "{out}/m.h5"], "bad.h5"),
+    (["merge", "{dir}/r.h5", "-o", "{dir}/r.h5"], "r.h5"),
+])
+def test_other_commands_fail_cleanly(tmp_path, result_file, args, culprit):
+    pytest.importorskip("matplotlib")
+    before = snapshot(result_file)
+    args = [a.format(dir=result_file, out=tmp_path) for a in args]
+    result = CliRunner().invoke(main, args)
+    assert result.exit_code == 2, result.output
+    assert result.stderr.count("\n") == 1 and result.stderr.startswith("clothtool: error: ")
+    assert culprit in result.stderr
+    assert list(tmp_path.iterdir()) == []
+    assert snapshot(result_file) == before
