@@ -6,6 +6,7 @@ computed once per reference frame, not once per pair.
 """
 
 import datetime
+import functools
 import os
 import time
 from dataclasses import dataclass, field
@@ -212,13 +213,11 @@ def _stream_pairs(pairs, reader, rest, writer, summary, fields, progress, extras
         ref = rest.get(r, x_ref)
         x = last[1] if last[0] == d else reader.positions(d)
         last = (d, x)
-        extras.frame(r, x_ref)
-        extras.frame(d, x)
         buffers = writer.buffers()
         deformation_fields(x, faces, *ref, DEGENERATE_TOL, *(buffers[n] for n in FIELDS))
-        extras.pair(p, buffers, ref[0])
         _accumulate(summary, buffers, fields)
-        writer.write(p, buffers)
+        writer.write(p, buffers, functools.partial(extras.pair, p, buffers, ref[0],
+                                                   ((r, x_ref), (d, x))))
 
 
 def _write_header(h5, paths, pairs, rest, reader, reference, uv_scale, command, store):

@@ -134,11 +134,15 @@ class PairWriter:
             pending.result()
         return self._sets[self._turn]
 
-    def write(self, index, buffers):
-        self._pending[self._turn] = self._pool.submit(self._write, index, buffers)
+    def write(self, index, buffers, prepare=None):
+        """Queue ``buffers`` for row ``index``; ``prepare()``, if given, runs on the writer
+        thread first (per-pair summaries and averages: work that overlaps the next pair)."""
+        self._pending[self._turn] = self._pool.submit(self._write, index, buffers, prepare)
         self._turn ^= 1
 
-    def _write(self, index, buffers):
+    def _write(self, index, buffers, prepare):
+        if prepare is not None:
+            prepare()
         for name, dataset in self.datasets.items():
             dataset[index] = buffers[name]
 

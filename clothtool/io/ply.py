@@ -228,7 +228,7 @@ def parse_ply(data, path="<bytes>", *, reuse=None):
     else:
         records, face_rows, face_block = _read_binary(data, header, path, reuse)
     vertex = records["vertex"]
-    vertices = np.stack([vertex["x"], vertex["y"], vertex["z"]], axis=1).astype(np.float64)
+    vertices = _positions(vertex)
     props = {n: vertex[n] for n in names if n not in ("x", "y", "z")}
     if face_rows is REUSED:
         faces, source = reuse.faces, reuse.face_source
@@ -238,6 +238,20 @@ def parse_ply(data, path="<bytes>", *, reuse=None):
     else:
         faces, source = _triangulate(face_rows, len(vertices), path)
     return PlyMesh(vertices, faces, source, props, header, face_block)
+
+
+def _positions(vertex):
+    """(N, 3) float64 from the x, y, z columns of a vertex record array. When every property
+    has one type (the usual case) the block is viewed as an (N, k) table: one copy."""
+    dt = vertex.dtype
+    types = {dt.fields[name][0] for name in dt.names}
+    if len(types) == 1 and len(vertex):
+        table = vertex.view(types.pop()).reshape(len(vertex), len(dt.names))
+        cols = [dt.names.index(axis) for axis in "xyz"]
+        picked = table[:, cols[0]:cols[0] + 3] if cols == list(range(cols[0], cols[0] + 3)) \
+            else table[:, cols]
+        return picked.astype(np.float64)
+    return np.stack([vertex["x"], vertex["y"], vertex["z"]], axis=1).astype(np.float64)
 
 
 def _face_property(element, path):
