@@ -52,6 +52,8 @@ class ClothtoolGroup(click.Group):
         except OSError as exc:  # an input or output the library did not anticipate
             where = f"{exc.filename}: " if exc.filename else ""
             _fail(ctx, f"error: {where}{exc.strerror or exc}", 2, exc)
+        except MemoryError as exc:  # the input asks for more than this machine has
+            _fail(ctx, f"error: out of memory: {exc}", 2, exc)
         except (click.exceptions.Exit, click.exceptions.Abort):
             raise
         except Exception as exc:  # a bug: still one line, the traceback with --debug

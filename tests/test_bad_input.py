@@ -424,6 +424,14 @@ def disk_full_while_writing(tmp):
 
 
 @case
+def out_of_memory(tmp):
+    def huge(m, fields, store):
+        raise MemoryError("Unable to allocate 74.5 GiB for an array")
+    return Case([str(sequence(tmp))], "out of memory: Unable to allocate 74.5 GiB",
+                patch={"clothtool.analysis.sequence.allocate_fields": huge})
+
+
+@case
 def internal_bug(tmp):
     def bug(*args):
         raise ZeroDivisionError("a bug in a kernel")
