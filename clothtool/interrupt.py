@@ -39,11 +39,6 @@ def install():
         sys.unraisablehook = _quiet(sys.unraisablehook)
 
 
-def received():
-    """True once SIGINT or SIGTERM has arrived (after :func:`install`)."""
-    return bool(_received)
-
-
 def check():
     """Raise ``KeyboardInterrupt`` if a signal arrived whose exception was dropped."""
     if _received:
