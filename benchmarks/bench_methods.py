@@ -250,7 +250,9 @@ def profile(out_dir, steps=20):
               "quadratic_gradient": "bending (quadratic)",
               "block_multiply": "damping products",
               "filtered_pcg": "linear solve (PCG)",
-              "resolve_collisions": "collisions",
+              "resolve_collisions": "collisions (projection)",
+              "contact_constraints": "collisions (contact constraints)",
+              "apply_friction": "collisions (friction)",
               "membrane_total_energy": "line search: membrane energy",
               "dihedral_total_energy": "line search: bending energy"}
     scenes = {
@@ -268,8 +270,9 @@ def profile(out_dir, steps=20):
             cfg["scene"] = {"pins": [], "colliders": []}
         config = load_config(cfg)
         model = build_model(config)
-        timers = {k: [0.0, 0] for k in stages}
-        originals = {k: getattr(integ_mod, k) for k in stages}
+        present = {k: v for k, v in stages.items() if hasattr(integ_mod, k)}
+        timers = {k: [0.0, 0] for k in present}
+        originals = {k: getattr(integ_mod, k) for k in present}
 
         def wrap(name, fn):
             def timed(*a, **kw):
@@ -283,7 +286,7 @@ def profile(out_dir, steps=20):
         integ = make_integrator(model, config.solver, config.step)
         state = model.initial_state()
         integ.step(state)  # compile
-        for k in stages:
+        for k in present:
             timers[k] = [0.0, 0]
             setattr(integ_mod, k, wrap(k, originals[k]))
         out_time = 0.0
@@ -305,7 +308,7 @@ def profile(out_dir, steps=20):
             for k, fn in originals.items():
                 setattr(integ_mod, k, fn)
         accounted = sum(t for t, _ in timers.values()) + out_time
-        for k, label in stages.items():
+        for k, label in present.items():
             t, n = timers[k]
             rows.append(dict(scene=title, stage=label, calls=n, ms_per_step=1000 * t / steps,
                              share=f"{100 * t / total:.1f} %"))

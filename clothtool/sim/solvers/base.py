@@ -51,8 +51,8 @@ class SolverBase:
         state.x = x
         state.time += self.h
         if model.has_colliders:
-            resolve_collisions(state.x, state.v, model.free, model.spheres, model.sphere_friction,
-                               model.planes, model.plane_friction, model.collision_margin)
+            resolve_collisions(state.x, state.v, model.free, model.spheres, model.planes,
+                               model.collision_margin)
 
     def _inverse_mass(self):
         w = 1.0 / self.model.mass

@@ -199,8 +199,8 @@ class SymplecticEuler(SolverBase):
             force = self._forces(x, v)
             symplectic_update(x, v, force, self._inv_mass, model.gravity, self.dt, model.free)
             if model.has_colliders:
-                resolve_collisions(x, v, model.free, model.spheres, model.sphere_friction,
-                                   model.planes, model.plane_friction, model.collision_margin)
+                resolve_collisions(x, v, model.free, model.spheres, model.planes,
+                               model.collision_margin)
         state.x = x
         state.v = v
         state.time += self.h

@@ -42,6 +42,7 @@ class MassSpringImplicit(SolverBase):
         self._values = self.pattern.zeros()
         self._damping = self.pattern.zeros() if model.damping > 0 else None
         self._tmp = np.zeros((model.n_vertices, 3))
+        self._normal = np.zeros((model.n_vertices, 3))  # no sliding contacts: pins only
 
     def elastic_energy(self, x):
         sp = self.springs
@@ -88,8 +89,9 @@ class MassSpringImplicit(SolverBase):
             dx = h * state.v if it == 0 else np.zeros_like(x)
             if model.has_pins:
                 dx[model.pinned] = 0.0
-            cg_its, residual = filtered_pcg(p.row_ptr, p.col, values, p.diag, -grad, dx, model.free,
-                                            model.has_pins, solver.tolerance, solver.max_iterations)
+            cg_its, residual = filtered_pcg(p.row_ptr, p.col, values, p.diag, -grad, dx, model.kind,
+                                            self._normal, model.has_pins, solver.tolerance,
+                                            solver.max_iterations)
             report.newton_iterations += 1
             report.cg_iterations += cg_its
             report.residual = max(report.residual, residual)
