@@ -5,42 +5,84 @@ Every command body imports its heavy modules (numba, h5py) lazily so that
 code (spec §6): 0 done, 2 bad input or usage, 3 numerical failure, 130 interrupted.
 """
 
-import signal
 import sys
+import traceback
 
 import click
 
-from clothtool import __version__
+try:  # click ≥ 8.2 raises this (a UsageError) for a bare command that has no_args_is_help
+    from click.exceptions import NoArgsIsHelpError
+except ImportError:  # pragma: no cover
+    class NoArgsIsHelpError(Exception):
+        pass
+
+from clothtool import __version__, interrupt
 from clothtool.errors import ClothtoolError
 
 EXIT_CODES_HELP = """\b
 Exit codes: 0 done, 2 bad input, usage or unusable output path,
-            3 numerical failure (a simulation that blew up), 130 interrupted."""
-
-
-def _raise_interrupt(signum, frame):
-    raise KeyboardInterrupt
+            3 numerical failure (a simulation that blew up), 130 interrupted,
+            1 internal error (a bug; --debug shows the traceback)."""
 
 
 class ClothtoolGroup(click.Group):
-    """A click group that turns clothtool's errors into one-line messages and exit codes."""
+    """A click group that turns every failure into one line on stderr and an exit code."""
+
+    def parse_args(self, ctx, args):
+        try:
+            return super().parse_args(ctx, args)
+        except NoArgsIsHelpError:
+            raise  # bare ``clothtool`` shows the help
+        except click.UsageError as exc:
+            _fail(ctx, _usage_message(exc), 2, exc)
 
     def invoke(self, ctx):
-        debug = "--debug" in sys.argv[1:]
         # SIGTERM is handled like Ctrl-C so that temporary outputs are cleaned up.
-        signal.signal(signal.SIGTERM, _raise_interrupt)
+        interrupt.install()
         try:
             return super().invoke(ctx)
         except ClothtoolError as exc:
-            if debug:
-                raise
-            click.echo(f"clothtool: error: {exc}", err=True)
-            ctx.exit(exc.exit_code)
-        except KeyboardInterrupt:
-            if debug:
-                raise
-            click.echo("clothtool: interrupted", err=True)
-            ctx.exit(130)
+            _fail(ctx, f"error: {exc}", exc.exit_code, exc)
+        except NoArgsIsHelpError:
+            raise
+        except click.UsageError as exc:
+            _fail(ctx, _usage_message(exc), 2, exc)
+        except KeyboardInterrupt as exc:
+            _fail(ctx, "interrupted", 130, exc)
+        except OSError as exc:  # an input or output the library did not anticipate
+            where = f"{exc.filename}: " if exc.filename else ""
+            _fail(ctx, f"error: {where}{exc.strerror or exc}", 2, exc)
+        except MemoryError as exc:  # the input asks for more than this machine has
+            _fail(ctx, f"error: out of memory: {exc}", 2, exc)
+        except (click.exceptions.Exit, click.exceptions.Abort):
+            raise
+        except Exception as exc:  # a bug: still one line, the traceback with --debug
+            if _caused_by_interrupt(exc):  # Ctrl-C inside a numba kernel surfaces as SystemError
+                _fail(ctx, "interrupted", 130, exc)
+            _fail(ctx, f"internal error: {type(exc).__name__}: {exc} "
+                       "(run with --debug for the traceback and please report it)", 1, exc)
+
+
+def _caused_by_interrupt(exc):
+    seen = set()
+    while exc is not None and id(exc) not in seen:
+        if isinstance(exc, KeyboardInterrupt):
+            return True
+        seen.add(id(exc))
+        exc = exc.__cause__ or exc.__context__
+    return False
+
+
+def _usage_message(exc):
+    command = exc.ctx.command_path if exc.ctx is not None else "clothtool"
+    return f"error: {exc.format_message()} (see '{command} --help')"
+
+
+def _fail(ctx, message, code, exc):
+    if ctx.find_root().params.get("debug") or "--debug" in sys.argv[1:]:
+        traceback.print_exception(type(exc), exc, exc.__traceback__, file=sys.stderr)
+    click.echo(f"clothtool: {' '.join(message.split())}", err=True)
+    ctx.exit(code)
 
 
 @click.group(cls=ClothtoolGroup, epilog=EXIT_CODES_HELP)
@@ -269,6 +311,41 @@ def init_config():
     from clothtool.config_tools import DEFAULT_CONFIG
 
     click.echo(DEFAULT_CONFIG, nl=False)
+
+
+SIMULATE_EPILOG = """\b
+Examples:
+  clothtool simulate sample_data/hanging_sheet.yaml
+      frames and stats.csv into the config's output.dir
+  clothtool simulate sheet.yaml -o runs/stiff --set material.stretch=1e5
+      another output folder (relative to the current folder), one key changed
+
+\b
+Output: DIR/frame_00000.ply (initial state) ... one binary PLY per frame with
+the rest coordinates as s,t (analyze it with --reference uv), and DIR/stats.csv.
+Config keys and units: see the README, section Simulation.
+
+""" + EXIT_CODES_HELP
+
+
+@main.command(epilog=SIMULATE_EPILOG)
+@click.argument("config", type=click.Path(dir_okay=False))
+@click.option("-o", "--output", type=click.Path(),
+              help="Output folder, overriding output.dir (relative to the current folder).")
+@click.option("--set", "settings", multiple=True, metavar="KEY=VALUE",
+              help="Override one config key, e.g. --set material.stretch=1e5 (repeatable).")
+@click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary.")
+def simulate(config, output, settings, quiet):
+    """Simulate cloth with an implicit Baraff-Witkin solver; write PLY frames.
+
+    CONFIG is a YAML file (mesh, material, scene, solver, time, output).
+    """
+    from clothtool.sim.api import simulate as run
+
+    result = run(config, output_dir=output, overrides=list(settings),
+                 progress=_progress_enabled(quiet))
+    if not quiet:
+        click.echo(result.describe())
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -13,18 +13,18 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from clothtool import __version__
+from clothtool import __version__, interrupt
 from clothtool.analysis.deformation2d import (DEGENERATE_TOL, FIELDS, allocate_fields,
                                               deformation_fields, reference_from_positions,
                                               reference_from_uv)
 from clothtool.errors import InputError
 from clothtool.io.frames import FrameReader, discover_frames
-from clothtool.io.h5 import (AtomicH5, PairWriter, check_output_path, create_pair_dataset,
-                              parse_compression)
+from clothtool.io.h5 import (AtomicH5, PairWriter, check_not_an_input, check_output_path,
+                              create_pair_dataset, parse_compression)
 from clothtool.results.extras import NEEDED, PairExtras
 from clothtool.results.slices import parse_pair_slice
 from clothtool.results.vertex_average import parse_vertex_average
-from clothtool.results.xdmf import write_xdmf, xdmf_path
+from clothtool.results.xdmf import xdmf_path, xdmf_text
 
 REFERENCE_MODES = ("previous", "first", "uv")
 EXTERNAL = -1  # the reference index of pairs against a reference mesh or the uv rest shape
@@ -182,6 +182,7 @@ def analyze_sequence(inputs, output, *, reference="previous", uv_scale=1.0, fiel
     check_output_path(output)
     xdmf = xdmf_path(output)
     paths = discover_frames(inputs)
+    check_not_an_input(output, paths if reference in REFERENCE_MODES else [*paths, reference])
     internal = reference in ("previous", "first")
     if internal and len(paths) < 2:
         raise InputError(f"{paths[0]}: only one frame; --reference {reference} needs at least two")
@@ -204,7 +205,8 @@ def analyze_sequence(inputs, output, *, reference="previous", uv_scale=1.0, fiel
         return {**allocate_fields(m, {*fields, *averaged, *NEEDED}, store), **extras.buffers(),
                 **(variant.buffers(store) if variant else {})}
 
-    with AtomicH5(output) as h5:
+    atomic = AtomicH5(output)
+    with atomic as h5:
         _write_header(h5, paths, pairs, rest, reader, reference, uv_scale, command, store)
         h5.attrs["pair_offset"] = offset
         h5.attrs["pairs_total"] = len(all_pairs)
@@ -219,12 +221,7 @@ def analyze_sequence(inputs, output, *, reference="previous", uv_scale=1.0, fiel
         with PairWriter({**datasets, **extras.datasets}, make_buffers) as writer:
             _stream_pairs(pairs, reader, rest, writer, summary, fields, progress, extras, variant)
         extras.close()
-    try:
-        write_xdmf(output, xdmf)
-    except BaseException:
-        if os.path.exists(xdmf):  # never leave an XDMF that describes an older result
-            os.remove(xdmf)
-        raise
+        atomic.add_sidecar(xdmf, xdmf_text(h5, os.path.basename(output)))  # renamed with it
     summary.seconds = time.perf_counter() - started
     return summary
 
@@ -235,6 +232,7 @@ def _stream_pairs(pairs, reader, rest, writer, summary, fields, progress, extras
     x_uv = rest.uv_positions() if variant and rest.reference == "uv" else None
     last = (0, reader.first.vertices)  # the frame read most recently, reused as a reference
     for p, (r, d) in enumerate(_progress(pairs, progress)):
+        interrupt.check()
         r, d = int(r), int(d)
         if r == EXTERNAL:
             x_ref = rest.vertices()

@@ -10,7 +10,8 @@ import os
 
 import numpy as np
 
-from clothtool.errors import InputError
+from clothtool.errors import ClothtoolError, InputError
+from clothtool.io.atomic import finish, temporary_name
 
 CHUNK_BYTES = 4 << 20  # upper bound on one chunk (HDF5's own limit is 4 GiB)
 
@@ -30,6 +31,15 @@ def check_output_path(path):
         raise InputError(f"{path}: output file is not writable")
 
 
+def check_not_an_input(path, inputs):
+    """Fail when the output would replace one of the ``inputs`` (frames, a reference mesh)."""
+    target = os.path.realpath(path)
+    for item in inputs:
+        if os.path.realpath(item) == target:
+            raise InputError(f"{path}: output path is also an input ({item}); "
+                             "it would be overwritten")
+
+
 def parse_compression(spec):
     """'none' → {} ; 'gzip' or 'gzip=LEVEL' → h5py keyword arguments (with shuffle)."""
     spec = (spec or "none").strip().lower()
@@ -46,29 +56,47 @@ def parse_compression(spec):
 
 class AtomicH5:
     """``with AtomicH5(path) as f:`` gives an ``h5py.File`` on a temporary name that
-    becomes ``path`` only if the block completes."""
+    becomes ``path`` only if the block completes; :meth:`add_sidecar` files (an XDMF)
+    are renamed with it, right after it, or removed with it. An ``OSError`` while
+    writing (a full disk, say) becomes an :class:`InputError` naming ``path``."""
 
     def __init__(self, path):
         self.path = os.path.abspath(os.fspath(path))
-        folder, name = os.path.split(self.path)
-        self.tmp = os.path.join(folder, f".{name}.tmp-{os.getpid()}")
+        self.tmp = temporary_name(self.path)
         self.file = None
+        self._renames = [(self.tmp, self.path)]
 
     def __enter__(self):
         import h5py
 
-        self.file = h5py.File(self.tmp, "w")
+        try:
+            self.file = h5py.File(self.tmp, "w")
+        except BaseException as exc:
+            finish(self._renames, ok=False)
+            if isinstance(exc, OSError):
+                raise self._write_error(exc) from exc
+            raise
         return self.file
+
+    def add_sidecar(self, path, text):
+        """Write ``text`` to a temporary name beside ``path`` now; it becomes ``path``
+        when the HDF5 file is complete."""
+        tmp = temporary_name(path)
+        self._renames.append((tmp, os.path.abspath(os.fspath(path))))
+        with open(tmp, "w", encoding="utf-8") as fh:
+            fh.write(text)
 
     def __exit__(self, exc_type, exc, tb):
         try:
-            self.file.close()
-        finally:
-            if exc_type is None:
-                os.replace(self.tmp, self.path)
-            elif os.path.exists(self.tmp):
-                os.remove(self.tmp)
+            finish(self._renames, ok=exc_type is None, close=self.file.close)
+        except OSError as error:
+            raise self._write_error(error) from error
+        if isinstance(exc, OSError) and not isinstance(exc, ClothtoolError):
+            raise self._write_error(exc) from exc
         return False
+
+    def _write_error(self, exc):
+        return InputError(f"{self.path}: cannot write: {exc.strerror or exc}")
 
 
 def create_pair_dataset(group, name, n_pairs, item_shape, dtype, compression, fillvalue=None):

@@ -1,0 +1,214 @@
+"""Baraff–Witkin stretch and shear in the finite-element form of Kim 2020.
+
+T. Kim, "A Finite Element Formulation of Baraff-Witkin Cloth", SCA 2020.
+With rest edge matrix D_m (from uv) and deformed edge matrix D_s = [x1 − x0, x2 − x0],
+the 3×2 deformation gradient F = D_s D_m⁻¹ has columns f0 = w_u, f1 = w_v (warp, weft).
+Energy densities (J/m², stiffnesses in N/m), integrated over the rest area A:
+
+    Ψ_stretch = k_s/2 · [(‖f0‖ − 1)² + (‖f1‖ − 1)²]
+    Ψ_shear   = k_h/2 · (f0·f1)²
+
+Baraff–Witkin's conditions C = a(‖w_u‖ − 1), C = a w_u·w_v scale with the square of
+the triangle area; these densities do not, so refining a mesh converges.
+
+Hessians w.r.t. vec F = (f0, f1), closed-form eigensystems (Kim 2020 §4–5):
+
+- stretch, per column f: k_s[f̂f̂ᵀ + (1 − 1/‖f‖)(I − f̂f̂ᵀ)]; eigenvalue k_s along f̂,
+  k_s(1 − 1/‖f‖) twice across it (negative under compression, clamped at 0);
+- shear: k_h[ggᵀ + s·H₆] with s = f0·f1, g = (f1, f0), H₆ = [[0, I], [I, 0]].
+  With u = f0 + f1, w = f1 − f0: eigenvalue s on the +1 space of H₆ less
+  ŝ = (u, u)/√(2‖u‖²), −s on the −1 space less d̂ = (w, −w)/√(2‖w‖²), and on
+  span(ŝ, d̂) the 2×2 matrix [[¾U − ¼W, ½√(UW)], [½√(UW), ¾W − ¼U]] (U = ‖u‖², W = ‖w‖²),
+  whose determinant −3(U − W)²/16 ≤ 0 gives one eigenvalue ≥ 0 and one ≤ 0.
+
+The projected element Hessian is Bᵀ H_F⁺ B with B = ∂vec F/∂x, PSD because H_F⁺ is.
+"""
+
+import numpy as np
+from numba import njit
+
+from clothtool.sim.vec3 import add, dot, load, scale, sub
+
+EPS = 1e-12
+
+
+@njit(cache=True)
+def _deformation(x0, x1, x2, dinv):
+    """F's columns f0, f1 and the shape-function weights α, β: f0 = Σ α_v x_v, f1 = Σ β_v x_v."""
+    a, b, c, d = dinv[0, 0], dinv[0, 1], dinv[1, 0], dinv[1, 1]
+    e1 = sub(x1, x0)
+    e2 = sub(x2, x0)
+    f0 = add(scale(a, e1), scale(c, e2))
+    f1 = add(scale(b, e1), scale(d, e2))
+    return f0, f1, (-a - c, a, c), (-b - d, b, d)
+
+
+@njit(cache=True)
+def _density(f0, f1, k_stretch, k_shear):
+    n0 = np.sqrt(dot(f0, f0))
+    n1 = np.sqrt(dot(f1, f1))
+    s = dot(f0, f1)
+    return 0.5 * k_stretch * ((n0 - 1.0) ** 2 + (n1 - 1.0) ** 2) + 0.5 * k_shear * s * s
+
+
+@njit(cache=True)
+def membrane_energy(x0, x1, x2, dinv, area, k_stretch, k_shear):
+    """A · (Ψ_stretch + Ψ_shear) of one triangle."""
+    f0, f1, _, _ = _deformation(x0, x1, x2, dinv)
+    return area * _density(f0, f1, k_stretch, k_shear)
+
+
+@njit(cache=True)
+def _stretch_block(f, k, project, out, offset):
+    """Add k[f̂f̂ᵀ + c(I − f̂f̂ᵀ)], c = 1 − 1/‖f‖ (clamped at 0 when projecting), at (offset, offset)."""
+    n2 = max(dot(f, f), EPS * EPS)
+    c = 1.0 - 1.0 / np.sqrt(n2)
+    if project and c < 0.0:
+        c = 0.0
+    for p in range(3):
+        for q in range(3):
+            ff = f[p] * f[q] / n2
+            out[offset + p, offset + q] += k * ((1.0 - c) * ff + (c if p == q else 0.0))
+
+
+@njit(cache=True)
+def _shear_hessian(f0, f1, k, project, out):
+    """Add the 6×6 shear Hessian k[ggᵀ + s H₆] (or its PSD projection) to out."""
+    s = dot(f0, f1)
+    if not project:
+        for p in range(3):
+            for q in range(3):
+                out[p, q] += k * f1[p] * f1[q]
+                out[p, 3 + q] += k * f1[p] * f0[q]
+                out[3 + p, q] += k * f0[p] * f1[q]
+                out[3 + p, 3 + q] += k * f0[p] * f0[q]
+            out[p, 3 + p] += k * s
+            out[3 + p, p] += k * s
+        return
+    u = add(f0, f1)
+    w = sub(f1, f0)
+    big_u = dot(u, u)
+    big_w = dot(w, w)
+    # ŝ = (u, u)/√(2U), d̂ = (w, −w)/√(2W); zero when undefined (their weight is then 0)
+    us = scale(1.0 / np.sqrt(2.0 * big_u), u) if big_u > EPS * EPS else (0.0, 0.0, 0.0)
+    ws = scale(1.0 / np.sqrt(2.0 * big_w), w) if big_w > EPS * EPS else (0.0, 0.0, 0.0)
+    # s (P⁺ − ŝŝᵀ) when s > 0, −s (P⁻ − d̂d̂ᵀ) when s < 0; P± = ½[[I, ±I], [±I, I]]
+    if s > 0.0:
+        for p in range(6):
+            for q in range(6):
+                same = 0.5 if p % 3 == q % 3 else 0.0
+                out[p, q] += k * s * (same - us[p % 3] * us[q % 3])
+    elif s < 0.0:
+        for p in range(6):
+            for q in range(6):
+                sign = 1.0 if (p < 3) == (q < 3) else -1.0
+                same = 0.5 if p % 3 == q % 3 else 0.0
+                out[p, q] -= k * s * sign * (same - ws[p % 3] * ws[q % 3])
+    # the non-negative eigenvalue of the 2×2 block on span(ŝ, d̂)
+    a11 = 0.75 * big_u - 0.25 * big_w
+    a22 = 0.75 * big_w - 0.25 * big_u
+    a12 = 0.5 * np.sqrt(big_u * big_w)
+    half = 0.5 * (a11 - a22)
+    lam = 0.5 * (a11 + a22) + np.sqrt(half * half + a12 * a12)
+    if lam <= 0.0:
+        return
+    c1, c2 = a12, lam - a11
+    d1, d2 = lam - a22, a12
+    if c1 * c1 + c2 * c2 < d1 * d1 + d2 * d2:
+        c1, c2 = d1, d2
+    norm = np.sqrt(c1 * c1 + c2 * c2)
+    if norm == 0.0:  # a12 = 0 and lam = a11 = a22: any unit vector of the block
+        c1, c2, norm = 1.0, 0.0, 1.0
+    c1 /= norm
+    c2 /= norm
+    # eigenvector c1 ŝ + c2 d̂ = (c1 us + c2 ws, c1 us − c2 ws)
+    top = add(scale(c1, us), scale(c2, ws))
+    bottom = sub(scale(c1, us), scale(c2, ws))
+    for p in range(6):
+        vp = top[p] if p < 3 else bottom[p - 3]
+        for q in range(6):
+            vq = top[q] if q < 3 else bottom[q - 3]
+            out[p, q] += k * lam * vp * vq
+
+
+@njit(cache=True)
+def membrane_element(x0, x1, x2, dinv, area, k_stretch, k_shear, project, grad, hess, h_f):
+    """Energy of one triangle; writes its gradient (9,) and Hessian (9, 9) (vertex-major).
+
+    ``project``: PSD-project the Hessian through the closed-form eigensystems.
+    ``h_f`` (6, 6) is workspace; it is left holding ∂²Ψ/∂vec F².
+    """
+    f0, f1, alpha, beta = _deformation(x0, x1, x2, dinv)
+    n0 = max(np.sqrt(dot(f0, f0)), EPS)
+    n1 = max(np.sqrt(dot(f1, f1)), EPS)
+    s = dot(f0, f1)
+    energy = area * _density(f0, f1, k_stretch, k_shear)
+    # ∂Ψ/∂f0, ∂Ψ/∂f1
+    g0 = add(scale(k_stretch * (n0 - 1.0) / n0, f0), scale(k_shear * s, f1))
+    g1 = add(scale(k_stretch * (n1 - 1.0) / n1, f1), scale(k_shear * s, f0))
+    h_f[:, :] = 0.0
+    if k_stretch > 0.0:
+        _stretch_block(f0, k_stretch, project, h_f, 0)
+        _stretch_block(f1, k_stretch, project, h_f, 3)
+    if k_shear > 0.0:
+        _shear_hessian(f0, f1, k_shear, project, h_f)
+    # chain rule through f0 = Σ α_v x_v, f1 = Σ β_v x_v
+    for v in range(3):
+        for p in range(3):
+            grad[3 * v + p] = area * (alpha[v] * g0[p] + beta[v] * g1[p])
+    for v in range(3):
+        for w in range(3):
+            aa = area * alpha[v] * alpha[w]
+            ab = area * alpha[v] * beta[w]
+            ba = area * beta[v] * alpha[w]
+            bb = area * beta[v] * beta[w]
+            for p in range(3):
+                for q in range(3):
+                    hess[3 * v + p, 3 * w + q] = (aa * h_f[p, q] + ab * h_f[p, 3 + q]
+                                                  + ba * h_f[3 + p, q] + bb * h_f[3 + p, 3 + q])
+    return energy
+
+
+@njit(cache=True)
+def membrane_assemble(x, faces, dinv, area, k_stretch, k_shear, slots, grad, values):
+    """W_membrane(x); adds its gradient to grad (N, 3) and projected Hessian blocks to values."""
+    g = np.empty(9)
+    hess = np.empty((9, 9))
+    work = np.empty((6, 6))
+    total = 0.0
+    for t in range(faces.shape[0]):
+        total += membrane_element(load(x, faces[t, 0]), load(x, faces[t, 1]), load(x, faces[t, 2]),
+                                  dinv[t], area[t], k_stretch, k_shear, True, g, hess, work)
+        for a in range(3):
+            v = faces[t, a]
+            for p in range(3):
+                grad[v, p] += g[3 * a + p]
+            for b in range(3):
+                block = values[slots[t, 3 * a + b]]
+                for p in range(3):
+                    for q in range(3):
+                        block[p, q] += hess[3 * a + p, 3 * b + q]
+    return total
+
+
+@njit(cache=True)
+def membrane_total_energy(x, faces, dinv, area, k_stretch, k_shear):
+    total = 0.0
+    for t in range(faces.shape[0]):
+        total += membrane_energy(load(x, faces[t, 0]), load(x, faces[t, 1]), load(x, faces[t, 2]),
+                                 dinv[t], area[t], k_stretch, k_shear)
+    return total
+
+
+@njit(cache=True)
+def max_principal_stretch(x, faces, dinv):
+    """Largest λ1 = √(largest eigenvalue of FᵀF) over all triangles."""
+    worst = 0.0
+    for t in range(faces.shape[0]):
+        f0, f1, _, _ = _deformation(load(x, faces[t, 0]), load(x, faces[t, 1]),
+                                    load(x, faces[t, 2]), dinv[t])
+        c00, c11, c01 = dot(f0, f0), dot(f1, f1), dot(f0, f1)
+        half = 0.5 * (c00 - c11)
+        lam = 0.5 * (c00 + c11) + np.sqrt(half * half + c01 * c01)
+        worst = max(worst, np.sqrt(lam))
+    return worst

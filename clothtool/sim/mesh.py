@@ -1,0 +1,128 @@
+"""The rest mesh: a grid (spec §5) or a PLY file, with the rest coordinates of each vertex.
+
+The rest shape of Baraff–Witkin cloth is its flat pattern: per-vertex (u, v) in
+metres. A grid's (u, v) are its own in-plane coordinates; a PLY's are its ``s t``
+/ ``u v`` texture coordinates times ``uv_scale``; a PLY without them is its own
+rest state (``uv`` is None and each triangle is measured in its tangent frame).
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from clothtool.errors import InputError
+
+PLANE_AXES = {"xy": (0, 1), "xz": (0, 2), "yz": (1, 2)}
+
+
+@dataclass(frozen=True)
+class RestMesh:
+    positions: np.ndarray  # (N, 3) initial positions
+    faces: np.ndarray  # (M, 3) int64, counter-clockwise in (u, v) for a grid
+    uv: np.ndarray | None  # (N, 2) rest coordinates in metres, or None
+    grid_shape: tuple | None  # (nx, ny) for a grid
+    rest3d: np.ndarray  # (N, 3): the rest shape embedded in 3D, (u, v, 0) when uv is given
+
+
+def grid_mesh(spec):
+    """An nx × ny grid, centred on the origin; vertex index j·nx + i, row ny−1 on top.
+
+    Quads are split along alternating diagonals (criss-cross by parity of i + j)
+    so that the grid has no preferred shear direction.
+    """
+    nx, ny = spec.nx, spec.ny
+    u = np.linspace(-spec.width / 2, spec.width / 2, nx)
+    v = np.linspace(-spec.height / 2, spec.height / 2, ny)
+    uu, vv = np.meshgrid(u, v)  # (ny, nx): row j, column i
+    uv = np.stack([uu.ravel(), vv.ravel()], axis=1)
+    a, b = PLANE_AXES[spec.plane]
+    positions = np.zeros((nx * ny, 3))
+    positions[:, a] = uv[:, 0]
+    positions[:, b] = uv[:, 1]
+
+    i, j = np.meshgrid(np.arange(nx - 1), np.arange(ny - 1))
+    i, j = i.ravel(), j.ravel()
+    v00, v10 = j * nx + i, j * nx + i + 1
+    v01, v11 = v00 + nx, v10 + nx
+    even = (i + j) % 2 == 0
+    # even: diagonal v00–v11; odd: diagonal v10–v01; both triangles counter-clockwise
+    t1 = np.where(even[:, None], np.stack([v00, v10, v11], 1), np.stack([v00, v10, v01], 1))
+    t2 = np.where(even[:, None], np.stack([v00, v11, v01], 1), np.stack([v10, v11, v01], 1))
+    faces = np.concatenate([t1, t2]).astype(np.int64)
+    return RestMesh(positions, faces, uv, (nx, ny), _embed(uv))
+
+
+def ply_mesh(path, uv_scale):
+    """A PLY rest mesh; its texture coordinates (× ``uv_scale``) are the rest shape when present."""
+    from clothtool.io.ply import read_ply
+
+    ply = read_ply(path)
+    if len(ply.faces) == 0:
+        raise InputError(f"{path}: mesh.ply has no faces")
+    uv = ply.uv
+    if uv is not None:
+        uv = uv * uv_scale
+        if not np.all(np.isfinite(uv)):
+            raise InputError(f"{path}: non-finite texture coordinates")
+    if not np.all(np.isfinite(ply.vertices)):
+        raise InputError(f"{path}: non-finite vertex coordinates")
+    rest3d = _embed(uv) if uv is not None else ply.vertices.copy()
+    return RestMesh(ply.vertices.copy(), ply.faces.astype(np.int64), uv, None, rest3d)
+
+
+def build_rest_mesh(mesh_spec):
+    if mesh_spec.grid is not None:
+        return grid_mesh(mesh_spec.grid)
+    return ply_mesh(mesh_spec.ply, mesh_spec.uv_scale)
+
+
+def _embed(uv):
+    return np.concatenate([uv, np.zeros((len(uv), 1))], axis=1)
+
+
+def rest_edge_matrices(mesh):
+    """Per-triangle 2×2 rest edge matrix D_m = [ū1 − ū0, ū2 − ū0] (columns).
+
+    From the uv coordinates when present (so that the columns of F = D_s D_m⁻¹ are
+    the warp and weft directions w_u, w_v of Baraff–Witkin); otherwise in each
+    rest triangle's tangent frame t1 = e1/‖e1‖, t2 = n × t1 (spec §2).
+    """
+    f = mesh.faces
+    if mesh.uv is not None:
+        p = mesh.uv[f]  # (M, 3, 2)
+        return np.stack([p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]], axis=2)
+    x = mesh.rest3d[f]
+    e1, e2 = x[:, 1] - x[:, 0], x[:, 2] - x[:, 0]
+    n = np.cross(e1, e2)
+    len1 = np.linalg.norm(e1, axis=1)
+    t1 = e1 / np.where(len1 > 0, len1, 1.0)[:, None]
+    nn = np.linalg.norm(n, axis=1)
+    t2 = np.cross(n / np.where(nn > 0, nn, 1.0)[:, None], t1)
+    dm = np.empty((len(f), 2, 2))
+    dm[:, 0, 0] = len1
+    dm[:, 1, 0] = 0.0
+    dm[:, 0, 1] = np.einsum("ij,ij->i", t1, e2)
+    dm[:, 1, 1] = np.einsum("ij,ij->i", t2, e2)
+    return dm
+
+
+def hinges(faces, n_vertices):
+    """Interior edges shared by exactly two triangles: rows (i, j, k, l) and their two faces.
+
+    Edge (i, j) is directed as in the first triangle (i, j, k); l is the other
+    triangle's opposite vertex. Edges with one triangle (boundary) or more than
+    two (non-manifold) have no hinge. Returns (hinge (H, 4), hinge_faces (H, 2)).
+    """
+    m = len(faces)
+    a = faces.ravel()
+    b = np.roll(faces, -1, axis=1).ravel()
+    opp = np.roll(faces, -2, axis=1).ravel()
+    key = np.minimum(a, b) * n_vertices + np.maximum(a, b)
+    order = np.argsort(key, kind="stable")
+    key_sorted = key[order]
+    starts = np.flatnonzero(np.r_[True, key_sorted[1:] != key_sorted[:-1]])
+    counts = np.diff(np.r_[starts, 3 * m])
+    two = starts[counts == 2]
+    first, second = order[two], order[two + 1]
+    hinge = np.stack([a[first], b[first], opp[first], opp[second]], axis=1).astype(np.int64)
+    return hinge, np.stack([first // 3, second // 3], axis=1).astype(np.int64)

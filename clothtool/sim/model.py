@@ -1,0 +1,166 @@
+"""The Model: everything about a run that does not change while it runs.
+
+Rest data per triangle (D_m⁻¹, rest area), lumped masses m_v = Σ ρA/3, the
+energies that are switched on and their parameters, per-hinge bending data,
+pins, colliders, and the block pattern of the system matrix with each element's
+block slots. A term whose stiffness is zero is left out entirely (no hinges,
+no pattern blocks, no kernels), as are pins and colliders when there are none.
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from clothtool.errors import InputError
+from clothtool.sim.blocksparse import FREE, PINNED, BlockPattern, scatter_blocks
+from clothtool.sim.config import Plane, Sphere
+from clothtool.sim.mesh import build_rest_mesh, hinges, rest_edge_matrices
+from clothtool.sim.pins import resolve_pins
+from clothtool.sim.state import State
+
+DEGENERATE = 1e-12  # rest triangle area relative to its squared longest edge
+
+
+@dataclass
+class Model:
+    mesh: object  # RestMesh
+    dinv: np.ndarray  # (M, 2, 2) D_m⁻¹
+    area: np.ndarray  # (M,) rest areas
+    mass: np.ndarray  # (N,) lumped masses
+    k_stretch: float
+    k_shear: float
+    damping: float  # s
+    gravity: np.ndarray  # (3,)
+    bend_model: str | None  # "dihedral", "quadratic", or None when bend = 0
+    hinge: np.ndarray  # (H, 4) i, j, k, l
+    hinge_rest_angle: np.ndarray  # (H,)
+    hinge_coef: np.ndarray  # (H,) c = k_b ‖ē‖² / (2(Ā_k + Ā_l))
+    hinge_weights: np.ndarray | None  # (H, 4) for the quadratic model
+    pinned: np.ndarray  # (P,) vertex indices
+    free: np.ndarray  # (N,) bool
+    kind: np.ndarray  # (N,) int8 constraint kind: FREE or PINNED (contacts are added per step)
+    spheres: np.ndarray  # (S, 4) centre, radius
+    planes: np.ndarray  # (Q, 6) point, unit normal
+    friction: np.ndarray  # (S + Q,) Coulomb coefficient per collider, spheres first
+    collision_margin: float
+    pattern: BlockPattern
+    tri_slots: np.ndarray  # (M, 9)
+    hinge_slots: np.ndarray  # (H, 16)
+    constant_hessian: np.ndarray | None  # block values of the quadratic bending Hessian
+
+    @property
+    def faces(self):
+        return self.mesh.faces
+
+    @property
+    def n_vertices(self):
+        return len(self.mass)
+
+    @property
+    def has_membrane(self):
+        return self.k_stretch > 0.0 or self.k_shear > 0.0
+
+    @property
+    def has_pins(self):
+        return len(self.pinned) > 0
+
+    @property
+    def has_colliders(self):
+        return len(self.spheres) + len(self.planes) > 0
+
+    def initial_state(self):
+        """Rest positions at rest, pushed out of colliders."""
+        from clothtool.sim.collide import resolve_collisions
+
+        state = State(self.mesh.positions.copy(), np.zeros_like(self.mesh.positions))
+        if self.has_colliders:
+            resolve_collisions(state.x, state.v, self.free, self.spheres, self.planes,
+                               self.collision_margin)
+        return state
+
+
+def build_model(config):
+    """Model from a validated :class:`~clothtool.sim.config.Config`."""
+    mesh = build_rest_mesh(config.mesh)
+    n = len(mesh.positions)
+    faces = mesh.faces
+    if faces.min() < 0 or faces.max() >= n:
+        raise InputError(f"{config.mesh.ply}: face index out of range")
+    dm = rest_edge_matrices(mesh)
+    det = dm[:, 0, 0] * dm[:, 1, 1] - dm[:, 0, 1] * dm[:, 1, 0]
+    area = 0.5 * np.abs(det)
+    edges = mesh.rest3d[faces] - mesh.rest3d[np.roll(faces, 1, axis=1)]
+    longest = np.max(np.einsum("mkp,mkp->mk", edges, edges), axis=1)
+    bad = np.flatnonzero(area <= DEGENERATE * longest)
+    if len(bad):
+        raise InputError(f"mesh: rest triangle {bad[0]} is degenerate (zero area in the rest "
+                         f"{'uv' if mesh.uv is not None else 'mesh'}); {len(bad)} such triangles")
+    dinv = np.linalg.inv(dm)
+
+    mat = config.material
+    mass = np.zeros(n)
+    np.add.at(mass, faces.ravel(), np.repeat(mat.density * area / 3.0, 3))
+    if np.any(mass == 0):
+        raise InputError(f"mesh: vertex {np.flatnonzero(mass == 0)[0]} belongs to no triangle")
+
+    bend_model, hinge, rest_angle, coef, weights = _bending(mesh, area, mat)
+    pinned = resolve_pins(config.scene.pins, n, mesh.grid_shape)
+    free = np.ones(n, dtype=np.bool_)
+    free[pinned] = False
+    kind = np.full(n, FREE, dtype=np.int8)
+    kind[pinned] = PINNED
+
+    spheres = [c for c in config.scene.colliders if isinstance(c, Sphere)]
+    planes = [c for c in config.scene.colliders if isinstance(c, Plane)]
+    sphere_arr = np.array([[*c.center, c.radius] for c in spheres], dtype=np.float64).reshape(-1, 4)
+    plane_arr = np.array([[*c.point, *(np.asarray(c.normal) / np.linalg.norm(c.normal))]
+                          for c in planes], dtype=np.float64).reshape(-1, 6)
+
+    pattern = BlockPattern(n, faces, *([hinge] if bend_model else []))
+    tri_slots = pattern.slots(faces)
+    hinge_slots = pattern.slots(hinge) if bend_model else np.zeros((0, 16), np.int64)
+    constant = None
+    if bend_model == "quadratic":
+        constant = pattern.zeros()
+        w = weights
+        elem = 2.0 * coef[:, None, None] * np.einsum("ha,hb->hab", w, w)  # (H, 4, 4)
+        blocks = np.einsum("hab,pq->hapbq", elem, np.eye(3)).reshape(-1, 12, 12)
+        scatter_blocks(blocks, hinge_slots, constant)
+
+    return Model(
+        mesh=mesh, dinv=dinv, area=area, mass=mass,
+        k_stretch=mat.stretch, k_shear=mat.shear, damping=mat.damping,
+        gravity=np.asarray(config.scene.gravity, dtype=np.float64),
+        bend_model=bend_model, hinge=hinge, hinge_rest_angle=rest_angle, hinge_coef=coef,
+        hinge_weights=weights, pinned=pinned, free=free, kind=kind,
+        spheres=sphere_arr, planes=plane_arr,
+        friction=np.array([c.friction for c in spheres + planes], dtype=np.float64),
+        collision_margin=config.scene.collision_margin,
+        pattern=pattern, tri_slots=tri_slots, hinge_slots=hinge_slots, constant_hessian=constant,
+    )
+
+
+def _bending(mesh, area, material):
+    """Hinges and their rest data; empty when bending is off or the mesh has no interior edge."""
+    from clothtool.sim.bending import dihedral_angles, quadratic_weights
+
+    empty = (None, np.zeros((0, 4), np.int64), np.zeros(0), np.zeros(0), None)
+    if material.bend == 0.0:
+        return empty
+    faces = mesh.faces
+    hinge, hinge_faces = hinges(faces, len(mesh.positions))
+    if len(hinge) == 0:
+        return empty
+    tri_area = area[hinge_faces]
+    r = mesh.rest3d
+    edge2 = np.einsum("hp,hp->h", r[hinge[:, 1]] - r[hinge[:, 0]], r[hinge[:, 1]] - r[hinge[:, 0]])
+    coef = material.bend * edge2 / (2.0 * tri_area.sum(axis=1))
+    # a uv pattern is flat by definition; a PLY without uv rests in its own shape
+    rest_angle = np.zeros(len(hinge)) if mesh.uv is not None else dihedral_angles(r, hinge)
+    weights = None
+    if material.bend_model == "quadratic":
+        if np.max(np.abs(rest_angle)) > 1e-6:
+            raise InputError("material.bend_model: 'quadratic' needs a flat rest state "
+                             "(a grid, or a PLY with uv); use 'dihedral'")
+        weights = quadratic_weights(r, hinge)
+    return material.bend_model, hinge, rest_angle, coef, weights

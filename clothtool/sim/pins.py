@@ -1,0 +1,48 @@
+"""Named pin sets on a grid (spec §5): vertex index = j·nx + i, row j = ny−1 is the top."""
+
+import numpy as np
+
+from clothtool.errors import InputError
+
+PIN_SETS = ("top_corners", "bottom_corners", "corners", "top_edge", "bottom_edge",
+            "left_edge", "right_edge")
+
+
+def grid_pin_set(name, nx, ny):
+    """Vertex indices of the named set on an nx × ny grid."""
+    top, right = ny - 1, nx - 1
+    rows = np.arange(ny)
+    cols = np.arange(nx)
+    sets = {
+        "top_corners": [top * nx, top * nx + right],
+        "bottom_corners": [0, right],
+        "corners": [0, right, top * nx, top * nx + right],
+        "top_edge": top * nx + cols,
+        "bottom_edge": cols,
+        "left_edge": rows * nx,
+        "right_edge": rows * nx + right,
+    }
+    return np.asarray(sets[name], dtype=np.int64)
+
+
+def resolve_pins(entries, n_vertices, grid_shape, key="scene.pins"):
+    """Sorted unique pinned vertex indices from names and indices.
+
+    ``grid_shape`` is (nx, ny) for a grid mesh, None for a PLY mesh (where only
+    vertex indices are allowed).
+    """
+    picked = []
+    for k, entry in enumerate(entries):
+        if isinstance(entry, str):
+            if grid_shape is None:
+                raise InputError(f"{key}[{k}]: pin set {entry!r} needs a grid mesh; "
+                                 "give vertex indices for a PLY mesh")
+            picked.append(grid_pin_set(entry, *grid_shape))
+        else:
+            if entry >= n_vertices:
+                raise InputError(f"{key}[{k}]: vertex index {entry} out of range "
+                                 f"(the mesh has {n_vertices} vertices)")
+            picked.append(np.array([entry], dtype=np.int64))
+    if not picked:
+        return np.zeros(0, dtype=np.int64)
+    return np.unique(np.concatenate(picked))

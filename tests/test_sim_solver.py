@@ -1,0 +1,259 @@
+"""The implicit solver: linear algebra, dynamics, pins, damping, contact, convergence, output."""
+
+import csv
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+from clothtool.errors import NumericalError
+from clothtool.io.ply import read_ply, write_ply
+from clothtool.sim.api import simulate
+from clothtool.sim.blocksparse import block_multiply, filtered_pcg
+from clothtool.sim.config import load_config
+from clothtool.sim.integrator import ImplicitEuler
+from clothtool.sim.model import build_model
+
+
+def config(**sections):
+    base = {"mesh": {"grid": {"nx": 8, "ny": 8}}, "time": {"fps": 30, "frames": 10}}
+    for name, values in sections.items():
+        base[name] = {**base.get(name, {}), **values}
+    return base
+
+
+def frames(out_dir):
+    return [read_ply(p) for p in sorted(out_dir.glob("frame_*.ply"))]
+
+
+def stats(out_dir):
+    with open(out_dir / "stats.csv") as fh:
+        return [{k: float(v) for k, v in row.items()} for row in csv.DictReader(fh)]
+
+
+def run(tmp_path, cfg, name="out"):
+    return simulate(cfg, output_dir=tmp_path / name, progress=False)
+
+
+def assembled_system(model, integrator, x):
+    """The Newton matrix M/h² + K at x as a scipy matrix."""
+    integrator._elastic_derivatives(x)
+    values = integrator._values.copy()
+    h = integrator.h
+    values[model.pattern.diag] += (model.mass / h**2)[:, None, None] * np.eye(3)
+    p = model.pattern
+    n = 3 * model.n_vertices
+    return values, sp.bsr_matrix((values, p.col, p.row_ptr), shape=(n, n)).tocsr()
+
+
+def test_block_product_and_filtered_pcg_match_scipy():
+    cfg = load_config(config(scene={"pins": ["top_edge"]}))
+    model = build_model(cfg)
+    integ = ImplicitEuler(model, cfg.solver, cfg.step)
+    rng = np.random.default_rng(0)
+    x = model.mesh.positions + 0.05 * rng.normal(size=model.mesh.positions.shape)
+    values, matrix = assembled_system(model, integ, x)
+    p = model.pattern
+    v = rng.normal(size=x.shape)
+    y = np.empty_like(v)
+    block_multiply(p.row_ptr, p.col, values, v, y)
+    np.testing.assert_allclose(y.ravel(), matrix @ v.ravel(), rtol=1e-12)
+    np.testing.assert_allclose(matrix.toarray(), matrix.toarray().T, atol=1e-9)
+
+    b = rng.normal(size=x.shape)
+    sol = np.zeros_like(b)
+    its, res = filtered_pcg(p.row_ptr, p.col, values, p.diag, b, sol, model.kind,
+                            np.zeros_like(b), True, 1e-10, 5000)
+    assert res <= 1e-10 and its > 0
+    free = np.repeat(model.free, 3)
+    expected = spla.spsolve(matrix[free][:, free].tocsc(), b.ravel()[free])
+    np.testing.assert_allclose(sol.ravel()[free], expected, rtol=1e-7, atol=1e-12)
+    assert not sol[model.pinned].any()  # the filter keeps pinned components at their start value
+    # the reported residual is the true one
+    r = (b.ravel() - matrix @ sol.ravel())[free]
+    assert np.linalg.norm(r) / np.linalg.norm(b.ravel()[free]) == pytest.approx(res, rel=1e-6)
+
+
+def test_free_fall_is_exactly_implicit_euler(tmp_path):
+    g = np.array([0.0, -9.81, 0.3])
+    cfg = config(scene={"gravity": g.tolist()}, solver={"tolerance": 1e-12},
+                 material={"damping": 0.05})
+    run(tmp_path, cfg)
+    h = 1 / 30
+    x = frames(tmp_path / "out")
+    v = np.zeros(3)
+    expected = x[0].vertices.copy()
+    for k in range(1, len(x)):
+        v = v + h * g
+        expected = expected + h * v
+        np.testing.assert_allclose(x[k].vertices, expected, rtol=0, atol=1e-10)
+    rows = stats(tmp_path / "out")
+    assert rows[-1]["kinetic"] == pytest.approx(0.5 * 0.2 * 1.0 * (v @ v), rel=1e-9)
+
+
+def test_pinned_vertices_never_move(tmp_path):
+    cfg = config(scene={"pins": ["left_edge", 63]}, material={"stretch": 2000.0},
+                 mesh={"grid": {"nx": 8, "ny": 8, "plane": "xz"}})
+    run(tmp_path, cfg)
+    x = frames(tmp_path / "out")
+    pinned = [0, 8, 16, 24, 32, 40, 48, 56, 63]
+    for f in x[1:]:
+        assert np.array_equal(f.vertices[pinned], x[0].vertices[pinned])
+    assert np.abs(x[-1].vertices - x[0].vertices).max() > 0.1  # the rest swings down
+
+
+def stretched_start(tmp_path, factor=1.3):
+    """A PLY whose positions are its uv pattern stretched and lifted: elastic energy, no gravity."""
+    n = 6
+    u, v = np.meshgrid(np.linspace(0, 0.5, n), np.linspace(0, 0.5, n))
+    uv = np.stack([u.ravel(), v.ravel()], 1)
+    pos = np.zeros((n * n, 3))
+    pos[:, :2] = factor * uv
+    pos[:, 2] = 0.05 * np.sin(7 * uv[:, 0]) * np.cos(5 * uv[:, 1])
+    i, j = np.meshgrid(np.arange(n - 1), np.arange(n - 1))
+    a = (j * n + i).ravel()
+    faces = np.concatenate([np.stack([a, a + 1, a + n + 1], 1), np.stack([a, a + n + 1, a + n], 1)])
+    write_ply(tmp_path / "start.ply", pos, faces, vertex_properties={"s": uv[:, 0], "t": uv[:, 1]})
+    return tmp_path / "start.ply"
+
+
+def total_energy(rows):
+    return np.array([r["kinetic"] + r["elastic"] + r["gravity"] for r in rows])
+
+
+def test_energy_decreases_under_damping(tmp_path):
+    ply = stretched_start(tmp_path)
+    base = {"mesh": {"ply": str(ply)}, "scene": {"gravity": [0, 0, 0]},
+            "material": {"stretch": 200.0, "shear": 20.0, "bend": 1e-4},
+            "time": {"frames": 20}, "solver": {"newton_iterations": 4, "tolerance": 1e-9}}
+    damped = {**base, "material": {**base["material"], "damping": 0.05}}
+    undamped = {**base, "material": {**base["material"], "damping": 0.0}}
+    run(tmp_path, damped, "damped")
+    run(tmp_path, undamped, "undamped")
+    e_damped = total_energy(stats(tmp_path / "damped"))
+    e_undamped = total_energy(stats(tmp_path / "undamped"))
+    assert e_damped[0] > 1.0
+    assert np.all(np.diff(e_damped) <= 0.0)
+    # stiffness-proportional damping slows the release of the stretch (overdamped at first)
+    # but leaves less energy in the end
+    assert e_damped[1] > e_undamped[1]
+    assert e_damped[-1] < 0.8 * e_undamped[-1]
+
+
+def test_no_penetration_of_a_sphere_or_plane(tmp_path):
+    cfg = config(mesh={"grid": {"nx": 13, "ny": 13, "plane": "xz"}},
+                 scene={"colliders": [{"sphere": {"center": [0, -0.4, 0], "radius": 0.3,
+                                                  "friction": 0.3}},
+                                      {"plane": {"point": [0, -0.8, 0], "normal": [0, 1, 0]}}]},
+                 time={"frames": 25})
+    run(tmp_path, cfg)
+    x = frames(tmp_path / "out")
+    for f in x:
+        dist = np.linalg.norm(f.vertices - [0, -0.4, 0], axis=1)
+        assert dist.min() >= 0.3 - 1e-12
+        assert f.vertices[:, 1].min() >= -0.8 - 1e-12
+    # the sheet came to rest on the sphere: its centre sits on top, the edges hang lower
+    centre = x[-1].vertices[6 * 13 + 6]
+    assert centre[1] == pytest.approx(-0.1 + 1e-3, abs=5e-3)
+    assert x[-1].vertices[:, 1].min() < -0.2
+
+
+def sag(tmp_path, n):
+    """Static sag of the bottom-edge centre of a vertical sheet hung from its top edge."""
+    cfg = {"mesh": {"grid": {"nx": n, "ny": n, "plane": "xy"}},
+           "material": {"stretch": 100.0, "shear": 100.0, "bend": 0.0, "damping": 0.0},
+           "scene": {"pins": ["top_edge"]},
+           "solver": {"newton_iterations": 8, "tolerance": 1e-8, "max_iterations": 5000},
+           "time": {"fps": 1, "frames": 6}}
+    run(tmp_path, cfg, f"sag{n}")
+    x = frames(tmp_path / f"sag{n}")
+    bottom_centre = (n - 1) // 2  # row 0, middle column
+    return x[0].vertices[bottom_centre, 1] - x[-1].vertices[bottom_centre, 1]
+
+
+def test_same_sag_at_two_resolutions(tmp_path):
+    coarse, fine = sag(tmp_path, 9), sag(tmp_path, 17)
+    assert coarse > 0.005  # a visible sag, not a numerical zero
+    assert fine == pytest.approx(coarse, rel=0.05)
+
+
+def test_sliding_constraint_keeps_the_prescribed_normal_motion():
+    """The filter S = I − nnᵀ: the normal component stays as given, the rest solves the system."""
+    cfg = load_config(config())
+    model = build_model(cfg)
+    integ = ImplicitEuler(model, cfg.solver, cfg.step)
+    values, matrix = assembled_system(model, integ, model.mesh.positions)
+    rng = np.random.default_rng(1)
+    n = model.n_vertices
+    kind = model.kind.copy()
+    normal = np.zeros((n, 3))
+    held = [3, 10, 20]
+    kind[held] = 2
+    normal[held] = rng.normal(size=(3, 3))
+    normal[held] /= np.linalg.norm(normal[held], axis=1)[:, None]
+    b = rng.normal(size=(n, 3))
+    sol = np.zeros((n, 3))
+    sol[held] = 0.01 * normal[held]  # prescribed normal motion
+    p = model.pattern
+    its, res = filtered_pcg(p.row_ptr, p.col, values, p.diag, b, sol, kind, normal, True, 1e-10, 5000)
+    assert res <= 1e-10
+    np.testing.assert_allclose(np.einsum("ij,ij->i", sol[held], normal[held]), 0.01, rtol=1e-12)
+    r = (b.ravel() - matrix @ sol.ravel()).reshape(n, 3)
+    r[held] -= np.einsum("ij,ij->i", r[held], normal[held])[:, None] * normal[held]
+    assert np.linalg.norm(r) <= 1e-9 * np.linalg.norm(b)
+
+
+def test_determinism(tmp_path):
+    cfg = config(scene={"pins": ["top_corners"]}, mesh={"grid": {"nx": 8, "ny": 8, "plane": "xz"}})
+    run(tmp_path, cfg, "a")
+    run(tmp_path, cfg, "b")
+    a = sorted((tmp_path / "a").glob("frame_*.ply"))
+    b = sorted((tmp_path / "b").glob("frame_*.ply"))
+    assert len(a) == 11 and [p.name for p in a] == [p.name for p in b]
+    for pa, pb in zip(a, b):
+        assert pa.read_bytes() == pb.read_bytes()
+
+
+def test_stiff_cloth_is_stable_at_one_step_per_frame(tmp_path):
+    cfg = config(mesh={"grid": {"nx": 12, "ny": 12, "plane": "xz"}},
+                 material={"stretch": 1e5, "shear": 1e3},
+                 scene={"pins": ["top_corners"]}, time={"fps": 30, "frames": 30})
+    result = run(tmp_path, cfg)
+    assert result.frames_written == 31
+    rows = stats(tmp_path / "out")
+    assert all(np.isfinite(r["kinetic"]) for r in rows)
+    assert max(r["max_stretch"] for r in rows) < 1.2
+    last = frames(tmp_path / "out")[-1].vertices
+    assert np.isfinite(last).all() and last[:, 1].min() > -1.6  # hangs, does not fly off
+
+
+def test_blow_up_names_the_frame_and_keeps_earlier_frames(tmp_path):
+    cfg = config(solver={"max_speed": 0.5}, time={"frames": 10})  # free fall passes 0.5 m/s at frame 2
+    with pytest.raises(NumericalError, match=r"blew up at frame 2: velocities exploded"):
+        run(tmp_path, cfg)
+    written = frames(tmp_path / "out")
+    assert len(written) == 2
+    assert len(stats(tmp_path / "out")) == 2
+
+
+def test_output_layout(tmp_path):
+    cfg = config(time={"frames": 4}, output={"every": 2})
+    result = run(tmp_path, cfg)
+    out = tmp_path / "out"
+    assert sorted(p.name for p in out.glob("*.ply")) == ["frame_00000.ply", "frame_00002.ply",
+                                                         "frame_00004.ply"]
+    assert result.frames_written == 3
+    first = read_ply(out / "frame_00000.ply")
+    assert first.header.format == "binary_little_endian"
+    model = build_model(load_config(cfg))
+    np.testing.assert_array_equal(first.uv, model.mesh.uv)
+    np.testing.assert_array_equal(first.faces, model.faces)
+    with open(out / "stats.csv") as fh:
+        header = fh.readline().strip().split(",")
+    assert header[:10] == ["frame", "time", "kinetic", "elastic", "gravity", "newton_iterations",
+                           "cg_iterations", "residual", "max_stretch", "wall_s"]
+    assert [r["frame"] for r in stats(out)] == [0, 2, 4]
+    # a second run into the same folder replaces the first one's frames
+    run(tmp_path, {**cfg, "output": {"every": 4}})
+    assert sorted(p.name for p in out.glob("*.ply")) == ["frame_00000.ply", "frame_00004.ply"]
