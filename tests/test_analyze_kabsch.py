@@ -128,3 +128,16 @@ def test_cli_kabsch(tmp_path):
     result = CliRunner().invoke(main, ["analyze", str(tmp_path / "seq"), "-o", str(out),
                                        "--fields", "residual"])
     assert result.exit_code == 2 and "--kabsch" in result.output
+
+
+def test_mesh_without_interior_edges(tmp_path):
+    """A lone triangle: /edge datasets of length 0, vertex rotations of a scaled triangle = I."""
+    folder = tmp_path / "tri"
+    folder.mkdir()
+    x = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], float)
+    for k in range(3):
+        write_ply(folder / f"f{k}.ply", x * (1 + 0.1 * k), np.array([[0, 1, 2]]))
+    clothtool.analyze_sequence(folder, tmp_path / "out.h5", kabsch=True, dtype="float64")
+    with h5py.File(tmp_path / "out.h5") as f:
+        assert f["edge/dihedral_change"].shape == (2, 0) and f["mesh/edges"].shape == (0, 2)
+        np.testing.assert_allclose(f["vertex/rotation"][:], np.broadcast_to(np.eye(3), (2, 3, 3, 3)), atol=1e-15)

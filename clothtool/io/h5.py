@@ -103,6 +103,8 @@ def create_pair_dataset(group, name, n_pairs, item_shape, dtype, compression, fi
     """A (P, *item_shape) dataset chunked as (1, rows, ...) with a chunk ≤ CHUNK_BYTES;
     unwritten elements read as ``fillvalue``."""
     item_shape = tuple(item_shape)
+    if 0 in item_shape:  # nothing to chunk or compress, e.g. /edge/* of a mesh without interior edges
+        return group.create_dataset(name, shape=(n_pairs, *item_shape), dtype=dtype, fillvalue=fillvalue)
     row_bytes = int(np.prod(item_shape[1:], dtype=np.int64)) * np.dtype(dtype).itemsize
     rows = max(1, min(item_shape[0], CHUNK_BYTES // max(row_bytes, 1))) if item_shape[0] else 1
     chunks = (1, rows, *item_shape[1:])
