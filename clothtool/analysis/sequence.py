@@ -286,7 +286,8 @@ def _accumulate(summary, buffers, fields):
 def _accumulate_3d(summary, buffers):
     angle = buffers["vertex/angle"]
     if angle.size and np.isfinite(angle).any():
-        summary.extra["angle_max"] = float(np.fmax(summary.extra.get("angle_max", np.nan), np.nanmax(angle)))
+        largest = np.fmax(summary.extra.get("angle_max", np.nan), np.nanmax(angle))
+        summary.extra["angle_max"] = float(largest)
     if buffers["vertex/flags"].size:
         summary.extra["vertex_flagged"] = (summary.extra.get("vertex_flagged", 0)
                                            + int(np.count_nonzero(buffers["vertex/flags"])))

@@ -2,7 +2,8 @@
 
 Datasets, beside the 2D ones (P pairs, N vertices, M triangles, E interior edges):
 
-    /vertex/rotation (P, N, 3, 3)   /vertex/angle (P, N)   /vertex/residual (P, N)   /vertex/flags (P, N) uint8
+    /vertex/rotation (P, N, 3, 3)   /vertex/angle (P, N)   /vertex/residual (P, N)
+    /vertex/flags (P, N) uint8
     /face/F3 /face/R3 /face/U3 (P, M, 3, 3)   /face/stretch3 (P, M, 3)   /face/directions3 (P, M, 3, 3)
     /edge/dihedral_change (P, E)   /edge/flags (P, E) uint8
     /mesh/edges (E, 2)   /mesh/edge_opposite (E, 2)
@@ -67,7 +68,8 @@ class Variant3D:
     def compute(self, x_ref, x_def, buffers):
         """Fill ``buffers`` (from :meth:`buffers`) for one pair of (N, 3) float64 positions."""
         if "vertex" in self.groups:
-            vertex_fields(x_ref, x_def, self.offsets, self.neighbours, *(buffers[k] for k in VERTEX_KEYS))
+            vertex_fields(x_ref, x_def, self.offsets, self.neighbours,
+                          *(buffers[k] for k in VERTEX_KEYS))
         if "face" in self.groups:
             face_fields3(x_ref, x_def, self.faces, self.tol, *(buffers[k] for k in FACE_KEYS),
                          np.empty(0, np.uint8))
