@@ -304,6 +304,8 @@ def _read_yaml(path: Path):
         where = f" line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""
         problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
         raise InputError(f"{path}:{where}: YAML syntax error: {problem}") from None
+    except RecursionError:
+        raise InputError(f"{path}: YAML nested too deeply to be a config") from None
     if raw is None:
         raw = {}
     if not isinstance(raw, dict):
