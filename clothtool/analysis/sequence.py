@@ -5,6 +5,7 @@ depends on the mesh, not on the number of frames. The rest-state data D_r⁻¹ i
 computed once per reference frame, not once per pair.
 """
 
+import contextlib
 import datetime
 import functools
 import os
@@ -218,12 +219,27 @@ def analyze_sequence(inputs, output, *, reference="previous", uv_scale=1.0, fiel
                     for name in fields if name in FIELDS}
         if variant:
             datasets.update(variant.create_datasets(h5, len(pairs), store, h5_compression))
-        with PairWriter({**datasets, **extras.datasets}, make_buffers) as writer:
+        with PairWriter({**datasets, **extras.datasets}, make_buffers) as writer, \
+                _kernel_threads_beside_writer():
             _stream_pairs(pairs, reader, rest, writer, summary, fields, progress, extras, variant)
         extras.close()
         atomic.add_sidecar(xdmf, xdmf_text(h5, os.path.basename(output)))  # renamed with it
     summary.seconds = time.perf_counter() - started
     return summary
+
+
+@contextlib.contextmanager
+def _kernel_threads_beside_writer():
+    """Leave one core to the HDF5 writer thread while the kernels run: on 2 cores the
+    100k-triangle benchmark runs in 1.55 s with one kernel thread and 1.7–1.9 s with two."""
+    import numba
+
+    threads = numba.get_num_threads()
+    numba.set_num_threads(max(1, threads - 1))
+    try:
+        yield
+    finally:
+        numba.set_num_threads(threads)
 
 
 def _stream_pairs(pairs, reader, rest, writer, summary, fields, progress, extras, variant):

@@ -112,6 +112,28 @@ def create_pair_dataset(group, name, n_pairs, item_shape, dtype, compression, fi
                                 chunks=chunks, fillvalue=fillvalue, **compression)
 
 
+def write_row(dataset, index, values):
+    """``dataset[index] = values`` for a dataset made by :func:`create_pair_dataset`.
+
+    Uncompressed rows go straight into their chunks (``write_direct_chunk``: no HDF5
+    selection or conversion machinery, about twice as fast as ``__setitem__`` for
+    megabyte rows); anything else takes the ordinary path."""
+    values = np.asarray(values)
+    chunks = dataset.chunks
+    if (dataset.compression is not None or chunks is None or values.dtype != dataset.dtype
+            or not values.flags.c_contiguous or values.shape != dataset.shape[1:]):
+        dataset[index] = values
+        return
+    rows = chunks[1]
+    zeros = (0,) * (values.ndim - 1)
+    for start in range(0, values.shape[0], rows):
+        block = values[start:start + rows]
+        if block.shape[0] < rows:  # the last chunk of the row extends past the data
+            block = np.concatenate([block, np.zeros((rows - block.shape[0], *block.shape[1:]),
+                                                    block.dtype)])
+        dataset.id.write_direct_chunk((index, start, *zeros), block.data)
+
+
 class PairWriter:
     """Writes each pair's arrays on a background thread while the next pair is computed.
 
@@ -146,7 +168,7 @@ class PairWriter:
         if prepare is not None:
             prepare()
         for name, dataset in self.datasets.items():
-            dataset[index] = buffers[name]
+            write_row(dataset, index, buffers[name])
 
     def __enter__(self):
         return self
