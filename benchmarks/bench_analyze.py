@@ -19,6 +19,7 @@ import numpy as np
 
 from benchmarks.common import (PYTHON, clothtool_cmd, markdown_table, median_time, peak_rss_mb,
                                run_timed, write_csv)
+from benchmarks.naive_route import edge_matrices
 from clothtool.io.ply import write_ply
 
 HERE = pathlib.Path(__file__).parent
@@ -46,15 +47,7 @@ def make_sequence(folder, frames=FRAMES, nx=NX, ny=NY):
 
 def svd_reference(x0, x1, faces):
     """Float64 numpy reference of one pair: F, stretch (singular values), R, U."""
-    def frame(x):
-        e1 = x[faces[:, 1]] - x[faces[:, 0]]
-        e2 = x[faces[:, 2]] - x[faces[:, 0]]
-        t1 = e1 / np.linalg.norm(e1, axis=1)[:, None]
-        n = np.cross(e1, e2)
-        n /= np.linalg.norm(n, axis=1)[:, None]
-        T = np.stack([t1, np.cross(n, t1)], 1)
-        return T @ np.stack([e1, e2], 2)
-    F = frame(x1) @ np.linalg.inv(frame(x0))
+    F = edge_matrices(x1, faces)[1] @ np.linalg.inv(edge_matrices(x0, faces)[1])
     W, S, Vt = np.linalg.svd(F)
     return {"F": F, "stretch": S, "R": W @ Vt,
             "U": np.transpose(Vt, (0, 2, 1)) @ (S[:, :, None] * Vt)}
