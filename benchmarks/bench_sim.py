@@ -4,11 +4,13 @@
 
 Writes ``sim_speed.csv`` and ``sim_speed.md`` into OUT_DIR:
 
-- speed: ms per step (median over the steps of one run) for 32², 64², 128² grids of
-  sample_data/hanging_sheet.yaml at one step per frame (30 fps), with the mean PCG
-  iterations per step, the cost per vertex per PCG iteration (linear scaling means
-  this stays flat), and the position error at the last frame against a converged
-  reference (4 substeps per frame, up to 3 Newton steps, PCG tolerance 1e-5);
+- speed: ms per step (median over the steps of one run; wall clock and the
+  process's CPU time, which other processes on a shared machine disturb less)
+  for 32², 64², 128² grids of sample_data/hanging_sheet.yaml at one step per frame
+  (30 fps), for each preconditioner and PCG tolerance, with the mean PCG
+  iterations per step, the CPU cost per vertex per PCG iteration (linear scaling
+  means this stays flat), and the position error at the last frame against a
+  converged reference (4 substeps per frame, up to 3 Newton steps, PCG tolerance 1e-5);
 - stability: the same scene at growing stretch stiffness and step size; a run is
   stable when it finishes without a blow-up and its largest principal stretch stays
   below 1.5.
@@ -27,6 +29,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 SCENE = ROOT / "sample_data" / "hanging_sheet.yaml"
 SIZES = (32, 64, 128)
+VARIANTS = (("multigrid", 1e-3), ("multigrid", 1e-2), ("jacobi", 1e-3))
 FRAMES = 10  # 1/3 s of the fall
 REFERENCE = {"solver.substeps": 4, "solver.newton_iterations": 3, "solver.newton_tolerance": 1e-4,
              "solver.tolerance": 1e-5, "solver.max_iterations": 2000}
@@ -36,8 +39,8 @@ STABLE_STRETCH = 1.5
 
 
 def _run(overrides, frames):
-    """Simulate in memory; returns (final positions, per-step seconds, per-step CG iterations,
-    largest principal stretch) or None on a blow-up."""
+    """Simulate in memory; returns (final positions, per-step (wall, CPU) seconds, per-step CG
+    iterations, largest principal stretch) or None on a blow-up."""
     from clothtool.errors import NumericalError
     from clothtool.sim.config import load_config
     from clothtool.sim.integrator import ImplicitEuler
@@ -49,12 +52,12 @@ def _run(overrides, frames):
     state = model.initial_state()
     seconds, iterations, worst = [], [], 1.0
     for _ in range(frames * cfg.solver.substeps):
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.process_time()
         try:
             report = integrator.step(state)
         except NumericalError:
             return None
-        seconds.append(time.perf_counter() - t0)
+        seconds.append((time.perf_counter() - t0, time.process_time() - c0))
         iterations.append(report.cg_iterations)
         speed = np.sqrt(np.einsum("ij,ij->i", state.v, state.v).max())
         if not np.isfinite(speed) or speed > cfg.solver.max_speed:
@@ -63,25 +66,31 @@ def _run(overrides, frames):
     return state.x, seconds, iterations, worst
 
 
-def speed_rows(sizes=SIZES, frames=FRAMES):
+def speed_rows(sizes=SIZES, frames=FRAMES, variants=VARIANTS):
     _run({"mesh.grid.nx": 4, "mesh.grid.ny": 4}, 2)  # compile (or load the numba cache)
+    _run({"mesh.grid.nx": 16, "mesh.grid.ny": 16}, 2)
     rows = []
     for n in sizes:
         grid = {"mesh.grid.nx": n, "mesh.grid.ny": n}
-        x, seconds, its, stretch = _run(grid, frames)
         x_ref, *_ = _run({**grid, **REFERENCE}, frames)
-        err = np.linalg.norm(x - x_ref, axis=1)
-        ms = 1000 * statistics.median(seconds)
-        mean_its = float(np.mean(its))
-        rows.append({
-            "grid": f"{n}x{n}", "vertices": n * n, "ms_per_step": round(ms, 2),
-            "cg_iterations": round(mean_its, 1),
-            "ns_per_vertex_iteration": round(1e6 * ms / (n * n * max(mean_its, 1.0)), 2),
-            "max_error_mm": round(1000 * float(err.max()), 3),
-            "rms_error_mm": round(1000 * float(np.sqrt(np.mean(err**2))), 3),
-            "max_stretch": round(stretch, 4),
-        })
-        print(rows[-1], file=sys.stderr)
+        for preconditioner, tol in variants:
+            x, seconds, its, stretch = _run({**grid, "solver.preconditioner": preconditioner,
+                                             "solver.tolerance": tol}, frames)
+            err = np.linalg.norm(x - x_ref, axis=1)
+            wall = 1000 * statistics.median(s for s, _ in seconds)
+            cpu = 1000 * statistics.median(c for _, c in seconds)
+            mean_its = float(np.mean(its))
+            rows.append({
+                "grid": f"{n}x{n}", "vertices": n * n, "preconditioner": preconditioner,
+                "tolerance": tol, "ms_per_step_wall": round(wall, 1),
+                "ms_per_step_cpu": round(cpu, 1), "cg_iterations": round(mean_its, 1),
+                "max_cg_iterations": int(max(its)),
+                "ns_per_vertex_iteration": round(1e6 * cpu / (n * n * max(mean_its, 1.0)), 1),
+                "max_error_mm": round(1000 * float(err.max()), 2),
+                "rms_error_mm": round(1000 * float(np.sqrt(np.mean(err**2))), 2),
+                "max_stretch": round(stretch, 4),
+            })
+            print(rows[-1], file=sys.stderr, flush=True)
     return rows
 
 
@@ -92,7 +101,7 @@ def stability_rows(n=32, frames=30):
         for h in STEPS:
             out = _run({**grid, "material.stretch": k, "time.fps": 1 / h,
                         "time.frames": frames}, max(2, round(frames / 30 / h)))
-            stable = out is not None and out[3] < STABLE_STRETCH
+            stable = out is not None and out[3] < STABLE_STRETCH  # multigrid, tolerance 1e-3
             rows.append({"stretch_N_per_m": k, "step_s": round(h, 4), "stable": stable,
                          "max_stretch": round(out[3], 4) if out else float("nan"),
                          "cg_iterations": round(float(np.mean(out[2])), 1) if out else float("nan")})

@@ -25,9 +25,10 @@ import numpy as np
 
 from clothtool.errors import NumericalError
 from clothtool.sim.bending import dihedral_assemble, dihedral_total_energy, quadratic_gradient
-from clothtool.sim.blocksparse import block_multiply, filtered_pcg, residual
+from clothtool.sim.blocksparse import BlockPattern, block_multiply, filtered_pcg, residual
 from clothtool.sim.collide import apply_friction, contact_constraints, resolve_collisions
 from clothtool.sim.membrane import max_principal_stretch, membrane_assemble, membrane_total_energy
+from clothtool.sim.multigrid import COARSEST, NO_MULTIGRID, Hierarchy
 
 MAX_HALVINGS = 10
 
@@ -56,6 +57,11 @@ class ImplicitEuler:
         self._normal = np.zeros((n, 3))
         self._contact = np.full(n, -1, dtype=np.int64)
         self._released = np.zeros(n, dtype=np.bool_)  # contacts that pulled last step
+        self._mg = NO_MULTIGRID  # block Jacobi; also for meshes too small to coarsen
+        if solver.preconditioner == "multigrid" and n > COARSEST:
+            triangles = BlockPattern(n, model.faces)
+            self._mg = Hierarchy(model.pattern.row_ptr, model.pattern.col,
+                                 graph=(triangles.row_ptr, triangles.col)).arrays()
 
     # ------------------------------------------------------------------ energies
 
@@ -156,7 +162,7 @@ class ImplicitEuler:
                 dx = np.zeros_like(x)  # constrained components were reached in the first step
             cg_its, res = filtered_pcg(pattern.row_ptr, pattern.col, values, pattern.diag, -grad,
                                        dx, kind, self._normal, constrained, solver.tolerance,
-                                       solver.max_iterations)
+                                       solver.max_iterations, self._mg)
             report.newton_iterations += 1
             report.cg_iterations += cg_its
             report.residual = max(report.residual, res)
