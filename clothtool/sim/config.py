@@ -234,9 +234,6 @@ class Config:
         """Solver time step h = 1 / (fps · substeps), seconds."""
         return 1.0 / (self.time.fps * self.solver.substeps)
 
-    def describe_source(self):
-        return str(self.source) if self.source is not None else "config"
-
 
 SECTIONS = {"mesh": MeshSpec, "material": Material, "scene": Scene,
             "solver": Solver, "time": Time, "output": Output}

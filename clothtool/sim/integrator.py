@@ -22,6 +22,7 @@ E does not increase, so no step raises the energy; Newton stops after
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 
 from clothtool.errors import NumericalError
 from clothtool.sim.bending import dihedral_assemble, dihedral_total_energy, quadratic_gradient
@@ -31,6 +32,24 @@ from clothtool.sim.membrane import max_principal_stretch, membrane_assemble, mem
 from clothtool.sim.multigrid import COARSEST, NO_MULTIGRID, Hierarchy
 
 MAX_HALVINGS = 10
+
+
+@njit(cache=True)
+def mass_weighted(x, y, mass):
+    """Σ_v m_v x_v·y_v (plain loops: numpy's BLAS would start threads that spin on 2 cores)."""
+    total = 0.0
+    for i in range(x.shape[0]):
+        total += mass[i] * (x[i, 0] * y[i, 0] + x[i, 1] * y[i, 1] + x[i, 2] * y[i, 2])
+    return total
+
+
+@njit(cache=True)
+def gravity_potential(x, mass, g):
+    """−Σ_v m_v g·x_v."""
+    total = 0.0
+    for i in range(x.shape[0]):
+        total -= mass[i] * (g[0] * x[i, 0] + g[1] * x[i, 1] + g[2] * x[i, 2])
+    return total
 
 
 @dataclass
@@ -105,21 +124,21 @@ class ImplicitEuler:
             return 0.0
         p = self.model.pattern
         block_multiply(p.row_ptr, p.col, self._damping, dx, self._tmp)
-        return 0.5 * float(np.sum(dx * self._tmp))
+        return 0.5 * float(np.sum(dx * self._tmp))  # elementwise: no BLAS
 
     def _potential(self, x, x_n, inertia_target, elastic):
         """E(x) given W(x) = elastic."""
-        m = self._mass3
         d = x - inertia_target
-        kinetic = 0.5 * float(np.sum(m * d * d)) / (self.h * self.h)
-        gravity = -float(self.model.mass @ (x @ self.model.gravity))
+        kinetic = 0.5 * mass_weighted(d, d, self.model.mass) / (self.h * self.h)
+        gravity = gravity_potential(x, self.model.mass, self.model.gravity)
         return kinetic + gravity + elastic + self._damping_energy(x - x_n)
 
     def energies(self, state):
         """(kinetic, elastic, gravitational potential) of a state, J."""
         model = self.model
-        kinetic = 0.5 * float(model.mass @ np.einsum("ij,ij->i", state.v, state.v))
-        return kinetic, self.elastic_energy(state.x), -float(model.mass @ (state.x @ model.gravity))
+        kinetic = 0.5 * mass_weighted(state.v, state.v, model.mass)
+        return (kinetic, self.elastic_energy(state.x),
+                gravity_potential(state.x, model.mass, model.gravity))
 
     def max_stretch(self, state):
         return max_principal_stretch(state.x, self.model.faces, self.model.dinv)
