@@ -148,7 +148,7 @@ def run(out_dir="bench-results"):
              "ms_per_step_cpu is the process's CPU time (other processes on the shared "
              "2-core machine inflate the wall time).",
              "", _table(speed), "",
-             f"Stability (32x32, multigrid, tolerance 1e-3, at least 1 s simulated; stable = no "
+             f"Stability (32x32, the sample's solver settings, at least 1 s simulated; stable = no "
              f"blow-up and max stretch < {STABLE_STRETCH}). `mean_drop_m`: how far the sheet's "
              "mean height has fallen (a converged fine-step run falls about 0.45 m): with one "
              "Newton step, stiff cloth at large steps barely moves (the linearised step locks "

@@ -301,6 +301,18 @@ def test_stiff_cloth_is_stable_at_one_step_per_frame(tmp_path):
     assert np.isfinite(last).all() and last[:, 1].min() > -1.6  # hangs, does not fly off
 
 
+def test_very_stiff_cloth_at_huge_steps_still_moves(tmp_path):
+    """The first Newton step from a flat sheet overshoots (no out-of-plane stiffness at
+    rest); the line search must shrink it until the energy drops, not give up."""
+    cfg = config(mesh={"grid": {"nx": 12, "ny": 12, "plane": "xz"}},
+                 material={"stretch": 1e7}, scene={"pins": ["top_corners"]},
+                 time={"fps": 1, "frames": 2})
+    run(tmp_path, cfg)
+    rows = stats(tmp_path / "out")
+    assert rows[-1]["gravity"] < rows[0]["gravity"] - 1e-4  # it fell a little
+    assert rows[-1]["max_stretch"] < 1.01
+
+
 def test_blow_up_names_the_frame_and_keeps_earlier_frames(tmp_path):
     cfg = config(solver={"max_speed": 0.5}, time={"frames": 10})  # free fall passes 0.5 m/s at frame 2
     with pytest.raises(NumericalError, match=r"blew up at frame 2: velocities exploded"):

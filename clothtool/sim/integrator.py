@@ -13,10 +13,13 @@ Each Newton step solves (M/h² + K(x) + D) Δx = −∇E(x) by PCG, starting fro
 x = x_n; the first one from x_n is exactly Baraff–Witkin's linearised step
 (M − h ∂f/∂v − h² ∂f/∂x) Δv = h (f + h ∂f/∂x v_n). The PCG starts from the
 previous motion Δx = h v_n, which is nearly the answer in slowly changing
-states (a guess with the free-fall term h² g would be far off at rest). With ``line_search`` the step length is halved until
-E does not increase, so no step raises the energy; Newton stops after
-``newton_iterations`` steps or when the largest velocity correction
-‖Δx‖∞/h is below ``newton_tolerance``.
+states (a guess with the free-fall term h² g would be far off at rest). With
+``line_search`` the step length is halved until E does not increase, so no
+step raises the energy; Newton stops after ``newton_iterations`` steps or when
+the largest velocity correction ‖Δx‖∞/h is below ``newton_tolerance``.
+
+Vertices held by pins or collider contacts (``collide``) are constrained in the
+solve through the filter of ``filter``/``blocksparse``.
 """
 
 from dataclasses import dataclass
