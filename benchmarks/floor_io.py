@@ -1,5 +1,6 @@
 """I/O floor for bench_analyze: read each frame's vertex block and write datasets of the
-same shapes, dtypes and chunking as clothtool analyze, with no analysis at all.
+same shapes, dtypes and chunking as clothtool analyze (the nine face fields and the
+per-frame positions /frame_vertices), with no analysis at all.
 
     python floor_io.py FOLDER OUT.h5
 """
@@ -33,8 +34,12 @@ def main(folder, out):
             dt = np.uint8 if name == "flags" else np.float32
             sets[name] = f.create_dataset(f"face/{name}", (len(paths) - 1, m, *shape), dt,
                                           chunks=(1, m, *shape))
+        positions = f.create_dataset("frame_vertices", (len(paths), len(x), 3), np.float32,
+                                     chunks=(1, len(x), 3))
+        positions[0] = x
         for p, path in enumerate(paths[1:]):
             x, _ = vertex_block(path)
+            positions[p + 1] = x
             for name, shape in SHAPES.items():
                 sets[name][p] = np.full((m, *shape), x[0, 0], sets[name].dtype)
 

@@ -5,42 +5,84 @@ Every command body imports its heavy modules (numba, h5py) lazily so that
 code (spec §6): 0 done, 2 bad input or usage, 3 numerical failure, 130 interrupted.
 """
 
-import signal
 import sys
+import traceback
 
 import click
 
-from clothtool import __version__
+try:  # click ≥ 8.2 raises this (a UsageError) for a bare command that has no_args_is_help
+    from click.exceptions import NoArgsIsHelpError
+except ImportError:  # pragma: no cover
+    class NoArgsIsHelpError(Exception):
+        pass
+
+from clothtool import __version__, interrupt
 from clothtool.errors import ClothtoolError
 
 EXIT_CODES_HELP = """\b
 Exit codes: 0 done, 2 bad input, usage or unusable output path,
-            3 numerical failure (a simulation that blew up), 130 interrupted."""
-
-
-def _raise_interrupt(signum, frame):
-    raise KeyboardInterrupt
+            3 numerical failure (a simulation that blew up), 130 interrupted,
+            1 internal error (a bug; --debug shows the traceback)."""
 
 
 class ClothtoolGroup(click.Group):
-    """A click group that turns clothtool's errors into one-line messages and exit codes."""
+    """A click group that turns every failure into one line on stderr and an exit code."""
+
+    def parse_args(self, ctx, args):
+        try:
+            return super().parse_args(ctx, args)
+        except NoArgsIsHelpError:
+            raise  # bare ``clothtool`` shows the help
+        except click.UsageError as exc:
+            _fail(ctx, _usage_message(exc), 2, exc)
 
     def invoke(self, ctx):
-        debug = "--debug" in sys.argv[1:]
         # SIGTERM is handled like Ctrl-C so that temporary outputs are cleaned up.
-        signal.signal(signal.SIGTERM, _raise_interrupt)
+        interrupt.install()
         try:
             return super().invoke(ctx)
         except ClothtoolError as exc:
-            if debug:
-                raise
-            click.echo(f"clothtool: error: {exc}", err=True)
-            ctx.exit(exc.exit_code)
-        except KeyboardInterrupt:
-            if debug:
-                raise
-            click.echo("clothtool: interrupted", err=True)
-            ctx.exit(130)
+            _fail(ctx, f"error: {exc}", exc.exit_code, exc)
+        except NoArgsIsHelpError:
+            raise
+        except click.UsageError as exc:
+            _fail(ctx, _usage_message(exc), 2, exc)
+        except KeyboardInterrupt as exc:
+            _fail(ctx, "interrupted", 130, exc)
+        except OSError as exc:  # an input or output the library did not anticipate
+            where = f"{exc.filename}: " if exc.filename else ""
+            _fail(ctx, f"error: {where}{exc.strerror or exc}", 2, exc)
+        except MemoryError as exc:  # the input asks for more than this machine has
+            _fail(ctx, f"error: out of memory: {exc}", 2, exc)
+        except (click.exceptions.Exit, click.exceptions.Abort):
+            raise
+        except Exception as exc:  # a bug: still one line, the traceback with --debug
+            if _caused_by_interrupt(exc):  # Ctrl-C inside a numba kernel surfaces as SystemError
+                _fail(ctx, "interrupted", 130, exc)
+            _fail(ctx, f"internal error: {type(exc).__name__}: {exc} "
+                       "(run with --debug for the traceback and please report it)", 1, exc)
+
+
+def _caused_by_interrupt(exc):
+    seen = set()
+    while exc is not None and id(exc) not in seen:
+        if isinstance(exc, KeyboardInterrupt):
+            return True
+        seen.add(id(exc))
+        exc = exc.__cause__ or exc.__context__
+    return False
+
+
+def _usage_message(exc):
+    command = exc.ctx.command_path if exc.ctx is not None else "clothtool"
+    return f"error: {exc.format_message()} (see '{command} --help')"
+
+
+def _fail(ctx, message, code, exc):
+    if ctx.find_root().params.get("debug") or "--debug" in sys.argv[1:]:
+        traceback.print_exception(type(exc), exc, exc.__traceback__, file=sys.stderr)
+    click.echo(f"clothtool: {' '.join(message.split())}", err=True)
+    ctx.exit(code)
 
 
 @click.group(cls=ClothtoolGroup, epilog=EXIT_CODES_HELP)
@@ -72,10 +114,15 @@ Examples:
   clothtool analyze frames/ -o out.h5 --reference rest.ply --dtype float64
   clothtool analyze frames/ -o part1.h5 --pairs 100:200
       only pairs 100..199; join the parts with `clothtool merge`
+  clothtool analyze frames/ -o out.h5 --kabsch --fields stretch,angle,residual,dihedral_change
+      with the 3D variant: per-vertex ring rotation, residual and bending
 
 \b
 Fields (--fields, comma separated; default all):
   F C U R strain stretch directions area_ratio flags
+  with --kabsch also: rotation angle residual (per vertex, /vertex/...),
+  F3 R3 U3 stretch3 directions3 (per face), dihedral_change (per edge, /edge/...);
+  flags then also selects /vertex/flags and /edge/flags
 Read the result with h5py:  h5py.File('out.h5')['face/stretch'][k]  (pair k)
 Open out.xdmf (written beside out.h5) in ParaView for the deformed mesh over time.
 
@@ -92,7 +139,7 @@ Open out.xdmf (written beside out.h5) in ParaView for the deformed mesh over tim
 @click.option("--uv-scale", default=1.0, show_default=True, type=float,
               help="Metres per uv unit for --reference uv.")
 @click.option("--fields", default="all", show_default=True, metavar="NAMES",
-              help="Comma-separated face fields to compute and store.")
+              help="Comma-separated fields to compute and store (list below).")
 @click.option("--dtype", type=click.Choice(["float32", "float64"]), default="float32",
               show_default=True, help="Storage type of float fields (computation is float64).")
 @click.option("--compression", default="none", show_default=True, metavar="none|gzip[=LEVEL]",
@@ -102,9 +149,12 @@ Open out.xdmf (written beside out.h5) in ParaView for the deformed mesh over tim
                    "incident triangles) as /vertex/NAME_avg, e.g. stretch,area_ratio.")
 @click.option("--pairs", "pair_slice", default=None, metavar="START:STOP",
               help="Compute only pairs START..STOP-1 (for splitting a sequence over machines).")
+@click.option("--kabsch", is_flag=True,
+              help="Add the 3D variant: Kabsch rotation of each vertex's one-ring, the 3×3 face "
+                   "gradient with its polar split, the dihedral-angle change per edge.")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary.")
 def analyze(inputs, output, reference, uv_scale, fields, dtype, compression, vertex_average,
-            pair_slice, quiet):
+            pair_slice, kabsch, quiet):
     """Per-triangle deformation of a PLY sequence, written to HDF5.
 
     FRAMES is a folder of .ply files, a glob, or a list of files; they are
@@ -117,7 +167,7 @@ def analyze(inputs, output, reference, uv_scale, fields, dtype, compression, ver
 
     summary = analyze_sequence(
         list(inputs), output, reference=reference, uv_scale=uv_scale,
-        fields=fields, dtype=dtype, compression=compression,
+        fields=fields, dtype=dtype, compression=compression, kabsch=kabsch,
         progress=_progress_enabled(quiet), command=" ".join(["clothtool", *sys.argv[1:]]),
         pairs=pair_slice, vertex_average=vertex_average,
     )

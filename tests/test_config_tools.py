@@ -20,7 +20,8 @@ SPEC_DEFAULTS = {  # spec §5, entry by entry, and the simulator's optional sett
     "solver": {"method": "implicit", "substeps": 1, "tolerance": 1.0e-6, "max_iterations": 500,
                "preconditioner": "multigrid",
                "newton_iterations": 1, "newton_tolerance": 1.0e-6, "line_search": True,
-               "max_speed": 1000.0},
+               "max_speed": 1000.0, "iterations": 10, "pbd_variant": "gauss-seidel",
+               "relaxation": 1.0, "pbd_stiffness": 1.0, "strain_limit": 0.0, "cfl": 0.5},
     "time": {"fps": 30, "frames": 120},
     "output": {"dir": "out/", "every": 1},
 }

@@ -40,6 +40,8 @@ def discover_frames(inputs):
             if not found:
                 raise InputError(f"{item}: pattern matches no files")
             frames.extend(sorted(found, key=natural_key))
+        elif os.path.exists(item):
+            raise InputError(f"{item}: not a regular file or folder")
         else:
             raise InputError(f"{item}: no such file or folder")
     return frames

@@ -15,12 +15,14 @@ allocated, so a header that declares 10¹² vertices fails at once.
 """
 
 import os
+import re
 import struct
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from clothtool.errors import InputError
+from clothtool.io.atomic import atomic_path
 
 SCALAR_TYPES = {
     "char": "i1", "int8": "i1", "uchar": "u1", "uint8": "u1",
@@ -34,7 +36,10 @@ _FORMATS = {"ascii": None, "binary_little_endian": "<", "binary_big_endian": ">"
 UV_NAMES = (("s", "t"), ("u", "v"), ("texture_u", "texture_v"), ("texture_s", "texture_t"))
 FACE_LIST_NAMES = ("vertex_indices", "vertex_index")
 MAX_HEADER_BYTES = 1 << 20
+_PROBE_BYTES = 4096  # read first, so that a large file that is not a PLY is not read whole
 REUSED = object()  # marks a face block taken from ``reuse`` without parsing
+_END_HEADER = re.compile(rb"(?:^|\n)end_header[ \t\r]*\n")  # the line, not a word in a comment
+_END_HEADER_LINE = re.compile(rb"(?:^|\n)end_header[ \t\r]*$")
 
 
 @dataclass(frozen=True)
@@ -113,20 +118,21 @@ def uv_of(vertex_properties):
 
 def parse_header(data, path):
     """Parse the header at the start of ``data`` (bytes). Returns a :class:`PlyHeader`."""
-    end = data.find(b"end_header", 0, MAX_HEADER_BYTES)
+    if not data:
+        raise InputError(f"{path}: empty file, not a PLY file")
     if not data.startswith(b"ply"):
         raise InputError(f"{path}: not a PLY file (does not start with 'ply')")
-    if end < 0:
+    match = _END_HEADER.search(data, 0, MAX_HEADER_BYTES)
+    if match is None:
+        if _END_HEADER_LINE.search(data, 0, MAX_HEADER_BYTES):
+            raise InputError(f"{path}: PLY header has no line break after 'end_header'")
         raise InputError(f"{path}: PLY header has no 'end_header' line")
-    stop = data.find(b"\n", end)
-    if stop < 0:
-        raise InputError(f"{path}: PLY header has no line break after 'end_header'")
-    raw = data[:stop + 1]
+    raw = data[:match.end()]
     try:
         text = raw.decode("ascii")
-    except UnicodeDecodeError:
-        bad = next(i for i, b in enumerate(raw) if b > 127)
-        raise InputError(f"{path}: non-ASCII byte in PLY header at offset {bad}") from None
+    except UnicodeDecodeError as exc:
+        line = raw[:exc.start].count(b"\n") + 1
+        raise InputError(f"{path}: header line {line}: non-ASCII byte at offset {exc.start}") from None
     lines = [ln.strip() for ln in text.replace("\r", "").split("\n")]
     fmt, elements, comments = None, [], []
     for number, line in enumerate(lines[1:], start=2):
@@ -143,17 +149,23 @@ def parse_header(data, path):
         elif key == "element":
             if len(words) != 3 or not words[2].isdigit():
                 raise InputError(f"{path}: header line {number}: bad element line {line!r}")
+            if any(el[0] == words[1] for el in elements):
+                raise InputError(f"{path}: header line {number}: element {words[1]!r} declared twice")
             elements.append([words[1], int(words[2]), []])
         elif key == "property":
             if not elements:
                 raise InputError(f"{path}: header line {number}: property before any element")
-            elements[-1][2].append(_parse_property(words, path, number, line))
+            prop = _parse_property(words, path, number, line)
+            if any(p.name == prop.name for p in elements[-1][2]):
+                raise InputError(f"{path}: header line {number}: property {prop.name!r} declared "
+                                 f"twice in element {elements[-1][0]!r}")
+            elements[-1][2].append(prop)
         else:
             raise InputError(f"{path}: header line {number}: unknown keyword {key!r}")
     if fmt is None:
         raise InputError(f"{path}: PLY header has no 'format' line")
     els = tuple(Element(n, c, tuple(p)) for n, c, p in elements)
-    return PlyHeader(fmt, els, tuple(comments), stop + 1)
+    return PlyHeader(fmt, els, tuple(comments), match.end())
 
 
 def _parse_property(words, path, number, line):
@@ -186,7 +198,12 @@ def read_ply(path, *, reuse=None):
     path = os.fspath(path)
     try:
         with open(path, "rb") as fh:
-            data = fh.read()
+            data = fh.read(_PROBE_BYTES)
+            if len(data) == _PROBE_BYTES:  # a large file: is it a PLY before reading it all?
+                if not data.startswith(b"ply"):
+                    parse_header(data, path)  # raises "not a PLY file"
+                fh.seek(0)
+                data = fh.read()
     except IsADirectoryError:
         raise InputError(f"{path}: is a folder, not a PLY file") from None
     except OSError as exc:
@@ -211,13 +228,30 @@ def parse_ply(data, path="<bytes>", *, reuse=None):
     else:
         records, face_rows, face_block = _read_binary(data, header, path, reuse)
     vertex = records["vertex"]
-    vertices = np.stack([vertex["x"], vertex["y"], vertex["z"]], axis=1).astype(np.float64)
-    props = {n: vertex[n] for n in names if n not in "xyz"}
+    vertices = _positions(vertex)
+    props = {n: vertex[n] for n in names if n not in ("x", "y", "z")}
     if face_rows is REUSED:
         faces, source = reuse.faces, reuse.face_source
+        if len(vertices) < len(reuse.vertices) and len(faces) and faces.max() >= len(vertices):
+            i = int(source[np.argmax((faces >= len(vertices)).any(axis=1))])
+            raise InputError(f"{path}: face {i} has a vertex index outside 0..{len(vertices) - 1}")
     else:
         faces, source = _triangulate(face_rows, len(vertices), path)
     return PlyMesh(vertices, faces, source, props, header, face_block)
+
+
+def _positions(vertex):
+    """(N, 3) float64 from the x, y, z columns of a vertex record array. When every property
+    has one type (the usual case) the block is viewed as an (N, k) table: one copy."""
+    dt = vertex.dtype
+    types = {dt.fields[name][0] for name in dt.names}
+    if len(types) == 1 and len(vertex):
+        table = vertex.view(types.pop()).reshape(len(vertex), len(dt.names))
+        cols = [dt.names.index(axis) for axis in "xyz"]
+        picked = table[:, cols[0]:cols[0] + 3] if cols == list(range(cols[0], cols[0] + 3)) \
+            else table[:, cols]
+        return picked.astype(np.float64)
+    return np.stack([vertex["x"], vertex["y"], vertex["z"]], axis=1).astype(np.float64)
 
 
 def _face_property(element, path):
@@ -282,16 +316,20 @@ def _min_bytes(el):
 def _read_binary_lists(data, el, order, offset, path):
     """Read an element with list properties. Fast path: every list has the length
     of the first record's (one structured ``frombuffer``); else record by record."""
+    if el.count == 0:
+        return {p.name: [] for p in el.properties}, offset
     lengths, probe = [], offset
     for p in el.properties:  # lengths of the first record's lists
         if p.is_list:
             if probe + np.dtype(p.count_dtype).itemsize > len(data):
-                raise InputError(f"{path}: truncated in element '{el.name}'")
+                raise InputError(f"{path}: truncated in {el.name} 0")
             n = int(np.frombuffer(data, order + p.count_dtype, 1, probe)[0])
             lengths.append(n)
-            probe += np.dtype(p.count_dtype).itemsize + n * np.dtype(p.dtype).itemsize
+            probe += np.dtype(p.count_dtype).itemsize + max(n, 0) * np.dtype(p.dtype).itemsize
         else:
             probe += np.dtype(p.dtype).itemsize
+    if min(lengths) < 0 or probe > len(data):  # let the record reader say what is wrong
+        return _read_binary_records(data, el, order, offset, path)
     fields, it = [], iter(lengths)
     for p in el.properties:
         if p.is_list:
@@ -321,20 +359,23 @@ def _read_binary_records(data, el, order, offset, path):
             readers.append((p.name, None, np.dtype(order + p.dtype)))
     columns = {p.name: [] for p in el.properties}
     end = len(data)
-    for _ in range(el.count):
+    for k in range(el.count):
         for name, count_struct, item in readers:
             if count_struct is None:
                 if offset + item.itemsize > end:
-                    raise InputError(f"{path}: truncated in element '{el.name}'")
+                    raise InputError(f"{path}: truncated in {el.name} {k} of {el.count}")
                 columns[name].append(np.frombuffer(data, item, 1, offset)[0])
                 offset += item.itemsize
                 continue
             if offset + count_struct.size > end:
-                raise InputError(f"{path}: truncated in element '{el.name}'")
+                raise InputError(f"{path}: truncated in {el.name} {k} of {el.count}")
             (n,) = count_struct.unpack_from(data, offset)
             offset += count_struct.size
-            if n < 0 or offset + n * item.itemsize > end:
-                raise InputError(f"{path}: truncated in element '{el.name}'")
+            if n < 0:
+                raise InputError(f"{path}: {el.name} {k}: negative list length {n} in '{name}'")
+            if offset + n * item.itemsize > end:
+                raise InputError(f"{path}: {el.name} {k}: list '{name}' of length {n} runs past "
+                                 f"the end of the file (truncated or corrupt)")
             columns[name].append(np.frombuffer(data, item, n, offset))
             offset += n * item.itemsize
     return columns, offset
@@ -343,8 +384,9 @@ def _read_binary_records(data, el, order, offset, path):
 def _read_ascii(data, header, path, reuse):
     try:
         body = data[header.size:].decode("ascii")
-    except UnicodeDecodeError:
-        raise InputError(f"{path}: non-ASCII byte in the body of an ascii PLY") from None
+    except UnicodeDecodeError as exc:
+        line = data[:header.size + exc.start].count(b"\n") + 1
+        raise InputError(f"{path}: line {line}: non-ASCII byte in an ascii PLY body") from None
     # A record takes at least two bytes ("0\n") per property: check before splitting.
     needed = sum(el.count * max(1, len(el.properties)) for el in header.elements)
     if 2 * needed > len(body) + 1:
@@ -391,84 +433,127 @@ def _ascii_scalar_records(chunk, el, path, first_line):
     try:
         values = np.array(rows, dtype=np.float64).reshape(el.count, n)
     except ValueError:
-        raise InputError(f"{path}: element '{el.name}': a value is not a number") from None
+        k = next(k for k, row in enumerate(rows) if not _all_numbers(row))
+        raise InputError(f"{path}: line {first_line + k}: {el.name} {k}: "
+                         f"{_first_bad(rows[k])!r} is not a number") from None
     out = np.empty(el.count, el.scalar_dtype("="))
-    for j, p in enumerate(el.properties):
-        out[p.name] = values[:, j]
+    with np.errstate(invalid="ignore", over="ignore"):  # like a C reader: cast, flag later
+        for j, p in enumerate(el.properties):
+            out[p.name] = values[:, j]
     return out
+
+
+def _all_numbers(row):
+    return _first_bad(row) is None
+
+
+def _first_bad(row):
+    for word in row:
+        try:
+            float(word)
+        except ValueError:
+            return word
+    return None
 
 
 def _ascii_list_records(chunk, el, path, first_line):
     rows = [ln.split() for ln in chunk]
     props = el.properties
-    if len(props) == 1 and props[0].is_list and rows:  # fast path: uniform lists only
+    if len(props) == 1 and props[0].is_list and rows:  # fast path: uniform integer lists only
         widths = {len(r) for r in rows}
         if len(widths) == 1:
             try:
                 table = np.array(rows, dtype=np.int64)
-            except ValueError:
-                raise InputError(f"{path}: element '{el.name}': a value is not an integer") from None
-            if np.all(table[:, 0] == table.shape[1] - 1):
+            except (ValueError, OverflowError):
+                table = None  # the record reader says where
+            if table is not None and np.all(table[:, 0] == table.shape[1] - 1):
                 return {props[0].name: table[:, 1:]}
     columns = {p.name: [] for p in props}
     for k, row in enumerate(rows):
-        pos = 0
-        try:
-            for p in props:
-                if p.is_list:
-                    n = int(row[pos])
-                    if n < 0 or pos + 1 + n > len(row):
-                        raise IndexError
+        pos, where = 0, f"{path}: line {first_line + k}: {el.name} {k}"
+        for p in props:
+            if pos >= len(row):
+                raise InputError(f"{where} has {len(row)} numbers, too few for its properties")
+            if p.is_list:
+                n = _ascii_int(row[pos], where)
+                if n < 0:
+                    raise InputError(f"{where}: negative list length {n} in '{p.name}'")
+                if pos + 1 + n > len(row):
+                    raise InputError(f"{where}: list '{p.name}' declares {n} items but the line "
+                                     f"has {len(row) - pos - 1}")
+                try:
                     columns[p.name].append(np.array(row[pos + 1:pos + 1 + n], dtype=np.float64))
-                    pos += 1 + n
-                else:
+                except ValueError:
+                    raise InputError(f"{where}: {_first_bad(row[pos + 1:pos + 1 + n])!r} "
+                                     "is not a number") from None
+                pos += 1 + n
+            else:
+                try:
                     columns[p.name].append(float(row[pos]))
-                    pos += 1
-        except (IndexError, ValueError):
-            raise InputError(f"{path}: line {first_line + k}: {el.name} {k} is malformed") from None
+                except ValueError:
+                    raise InputError(f"{where}: {row[pos]!r} is not a number") from None
+                pos += 1
         if pos != len(row):
-            raise InputError(f"{path}: line {first_line + k}: {el.name} {k} has extra numbers")
+            raise InputError(f"{where} has {len(row) - pos} extra numbers")
     return columns
+
+
+def _ascii_int(word, where):
+    try:
+        return int(word)
+    except ValueError:
+        raise InputError(f"{where}: list length {word!r} is not an integer") from None
 
 
 def _triangulate(rows, n_vertices, path):
     """Fan-triangulate polygon rows → (faces (M,3) int64, face_source (M,) int64)."""
-    if rows is None:
+    if rows is None or len(rows) == 0:
         return np.zeros((0, 3), np.int64), np.zeros(0, np.int64)
     if isinstance(rows, np.ndarray) and rows.ndim == 2:
         k = rows.shape[1]
-        if len(rows) and k < 3:
+        if k < 3:
             raise InputError(f"{path}: face 0 has {k} corners, at least 3 are needed")
-        polys = np.asarray(rows, dtype=np.int64)
-        _check_indices(polys, n_vertices, path)
+        polys = _indices(rows, np.full(len(rows), k), n_vertices, path).reshape(-1, k)
         if k == 3:
             return np.ascontiguousarray(polys), np.arange(len(polys), dtype=np.int64)
         fan = np.stack([np.zeros(k - 2, np.int64), np.arange(1, k - 1), np.arange(2, k)], axis=1)
         faces = polys[:, fan].reshape(-1, 3)
         return faces, np.repeat(np.arange(len(polys), dtype=np.int64), k - 2)
-    faces, source = [], []
-    for i, row in enumerate(rows):
-        poly = np.asarray(row)
-        if len(poly) < 3:
-            raise InputError(f"{path}: face {i} has {len(poly)} corners, at least 3 are needed")
-        if not np.all(poly == np.round(poly)):
+    lengths = np.array([len(r) for r in rows], dtype=np.int64)
+    short = np.flatnonzero(lengths < 3)
+    if len(short):
+        i = int(short[0])
+        raise InputError(f"{path}: face {i} has {lengths[i]} corners, at least 3 are needed")
+    flat = _indices(np.concatenate(rows), lengths, n_vertices, path)
+    starts = np.cumsum(lengths) - lengths  # offset of each polygon's first corner in flat
+    per_face = lengths - 2
+    source = np.repeat(np.arange(len(rows), dtype=np.int64), per_face)
+    first = np.repeat(starts, per_face)
+    j = np.arange(len(source)) - np.repeat(np.cumsum(per_face) - per_face, per_face) + 1
+    faces = np.stack([flat[first], flat[first + j], flat[first + j + 1]], axis=1)
+    return faces, source
+
+
+def _indices(values, lengths, n_vertices, path):
+    """Flat vertex indices as int64, checked: integral and within 0..n_vertices-1.
+    ``lengths`` (corners of each face) locate the face of a bad index for the message."""
+    values = np.ravel(values)
+    if values.dtype.kind == "f":
+        bad = ~np.isfinite(values) | (values != np.round(values))
+        if bad.any():
+            i = _face_of(int(np.argmax(bad)), lengths)
             raise InputError(f"{path}: face {i} has a non-integer vertex index")
-        poly = poly.astype(np.int64)
-        faces.extend((poly[0], poly[j], poly[j + 1]) for j in range(1, len(poly) - 1))
-        source.extend([i] * (len(poly) - 2))
-    faces = np.array(faces, dtype=np.int64).reshape(-1, 3)
-    _check_indices(faces, n_vertices, path)
-    return faces, np.array(source, dtype=np.int64)
+    bad = (values < 0) | (values >= n_vertices)
+    if bad.any():
+        at = int(np.argmax(bad))
+        value = values[at].item()
+        raise InputError(f"{path}: face {_face_of(at, lengths)} has vertex index "
+                         f"{int(value)} outside 0..{n_vertices - 1}")
+    return values.astype(np.int64)
 
 
-def _check_indices(faces, n_vertices, path):
-    if faces.size == 0:
-        return
-    bad = np.flatnonzero(((faces < 0) | (faces >= n_vertices)).any(axis=1))
-    if len(bad):
-        i = int(bad[0])
-        raise InputError(f"{path}: face {i} has vertex index {faces[i].tolist()} "
-                         f"outside 0..{n_vertices - 1}")
+def _face_of(position, lengths):
+    return int(np.searchsorted(np.cumsum(lengths), position, side="right"))
 
 
 # ---------------------------------------------------------------------------- writing
@@ -513,21 +598,14 @@ def write_ply(path, vertices, faces, *, vertex_properties=None, face_properties=
     frec["vertex_indices"] = faces
     for k, v in fprops.items():
         frec[k] = v
-    tmp = _temporary_name(path)
-    try:
-        with open(tmp, "wb") as fh:
-            fh.write(("\n".join(lines) + "\n").encode("ascii"))
-            if binary:
-                fh.write(vrec.tobytes())
-                fh.write(frec.tobytes())
-            else:
-                _write_ascii_records(fh, vrec)
-                _write_ascii_records(fh, frec)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.remove(tmp)
-        raise
+    with atomic_path(path) as tmp, open(tmp, "wb") as fh:
+        fh.write(("\n".join(lines) + "\n").encode("ascii"))
+        if binary:
+            fh.write(vrec.tobytes())
+            fh.write(frec.tobytes())
+        else:
+            _write_ascii_records(fh, vrec)
+            _write_ascii_records(fh, frec)
 
 
 def _write_ascii_records(fh, rec):
@@ -543,8 +621,3 @@ def _fmt(value):
     if isinstance(value, (np.floating, float)):
         return repr(float(value))
     return str(int(value))
-
-
-def _temporary_name(path):
-    folder, name = os.path.split(os.path.abspath(path))
-    return os.path.join(folder, f".{name}.tmp-{os.getpid()}")

@@ -50,9 +50,12 @@ class PairExtras:
             self.positions[index] = x
             self.stored[index] = True
 
-    def pair(self, p, buffers, dinv):
+    def pair(self, p, buffers, dinv, frames=()):
         """Summary row of pair ``p`` and its vertex averages (into ``buffers``), from the face
-        fields in ``buffers`` and the reference's D_r⁻¹ (for the rest areas)."""
+        fields in ``buffers`` and the reference's D_r⁻¹ (for the rest areas); ``frames``:
+        (index, positions) of the pair's frames, stored if not yet (:meth:`frame`)."""
+        for index, x in frames:
+            self.frame(index, x)
         self.table.add(p, buffers["stretch"], buffers["area_ratio"], buffers["flags"])
         if self.averaged:
             areas = rest_areas(dinv)

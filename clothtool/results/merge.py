@@ -108,7 +108,7 @@ def merge_results(paths, output, *, command=None):
     """Join the slice results ``paths`` into ``output`` (atomic HDF5, plus its XDMF).
     Returns (pair_offset, number of pairs) of the merged result."""
     from clothtool.io.h5 import AtomicH5, check_output_path
-    from clothtool.results.xdmf import write_xdmf, xdmf_path
+    from clothtool.results.xdmf import xdmf_path, xdmf_text
 
     if not paths:
         raise InputError("merge: no input files")
@@ -123,7 +123,8 @@ def merge_results(paths, output, *, command=None):
         first = parts[0]
         offset = int(first.attrs.get("pair_offset", 0))
         total = sum(len(h5["pairs"]) for h5 in parts)
-        with AtomicH5(output) as dst:
+        atomic = AtomicH5(output)
+        with atomic as dst:
             dst.attrs.update(first.attrs)
             dst.attrs["command"] = command or "clothtool.merge_results"
             dst.attrs["created"] = datetime.datetime.now().astimezone().isoformat(timespec="seconds")
@@ -151,13 +152,8 @@ def merge_results(paths, output, *, command=None):
                                 done.add(frame)
                 else:
                     first.copy(src, dst, name)
+            atomic.add_sidecar(xdmf, xdmf_text(dst, os.path.basename(output)))  # renamed with it
     finally:
         for h5 in parts:
             h5.close()
-    try:
-        write_xdmf(output, xdmf)
-    except BaseException:
-        if os.path.exists(xdmf):
-            os.remove(xdmf)
-        raise
     return offset, total

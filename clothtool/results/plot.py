@@ -7,9 +7,12 @@ spaced); (4) one field of one pair drawn on its deformed mesh, projected on the 
 best-fit plane (the two leading right-singular vectors of the centred positions).
 """
 
+import os
+
 import numpy as np
 
 from clothtool.errors import InputError
+from clothtool.io.atomic import atomic_path
 from clothtool.results.export import field_values
 from clothtool.results.info import open_result
 from clothtool.results.summary import read_summary
@@ -56,6 +59,18 @@ def _histogram_data(h5):
     return {k: v[np.isfinite(v)] for k, v in out.items()}, len(picks)
 
 
+def _image_format(output):
+    """The image format named by the extension of ``output`` (png without one)."""
+    from matplotlib.backend_bases import FigureCanvasBase
+
+    fmt = os.path.splitext(os.fspath(output))[1][1:].lower() or "png"
+    known = FigureCanvasBase.get_supported_filetypes()
+    if fmt not in known:
+        raise InputError(f"{output}: unknown image format {fmt!r}; use one of "
+                         f"{', '.join(sorted(known))}")
+    return fmt
+
+
 def plot_result(h5_path, output, *, pair=None, field=None, component=0, dpi=120):
     """Draw the overview figure of the result ``h5_path`` into ``output`` (format from its
     extension). ``pair``: the pair of the map (default: the largest 95th percentile of λ1);
@@ -64,6 +79,7 @@ def plot_result(h5_path, output, *, pair=None, field=None, component=0, dpi=120)
 
     plt = _pyplot()
     check_output_path(output)
+    fmt = _image_format(output)
     with open_result(h5_path) as h5:
         summary = read_summary(h5)
         faces_group = h5.get("face", {})
@@ -130,6 +146,7 @@ def plot_result(h5_path, output, *, pair=None, field=None, component=0, dpi=120)
     fig.colorbar(mappable, ax=ax, shrink=0.8, label=label)
     ax.set_title(f"{label} of pair {pair} (frame {frame}), best-fit plane view")
     fig.suptitle(str(h5_path))
-    fig.savefig(output, dpi=dpi)
+    with atomic_path(output) as tmp:  # the temporary name has no extension: say the format
+        fig.savefig(tmp, dpi=dpi, format=fmt)
     plt.close(fig)
     return pair

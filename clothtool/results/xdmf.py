@@ -16,6 +16,7 @@ from xml.sax.saxutils import escape, quoteattr
 import numpy as np
 
 from clothtool.errors import InputError
+from clothtool.io.atomic import atomic_path
 
 CENTERS = (("face", "Cell"), ("vertex", "Node"))
 _NUMBER_TYPES = {"f": "Float", "i": "Int", "u": "UInt"}
@@ -37,16 +38,8 @@ def write_xdmf(h5_path, path=None):
     path = path or xdmf_path(h5_path)
     with h5py.File(h5_path, "r") as h5:
         text = xdmf_text(h5, os.path.basename(h5_path))
-    folder, name = os.path.split(os.path.abspath(path))
-    tmp = os.path.join(folder, f".{name}.tmp-{os.getpid()}")
-    try:
-        with open(tmp, "w", encoding="utf-8") as fh:
-            fh.write(text)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.remove(tmp)
-        raise
+    with atomic_path(path) as tmp, open(tmp, "w", encoding="utf-8") as fh:
+        fh.write(text)
     return path
 
 

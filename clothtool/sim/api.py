@@ -40,9 +40,10 @@ def simulate(config_or_path, *, output_dir=None, overrides=None, progress=True):
     """
     from tqdm import tqdm
 
-    from clothtool.sim.integrator import ImplicitEuler, StepReport
+    from clothtool.sim.integrator import StepReport
     from clothtool.sim.model import build_model
     from clothtool.sim.output import FrameWriter
+    from clothtool.sim.solvers import make_integrator
 
     if isinstance(config_or_path, Config):
         if overrides:
@@ -52,7 +53,7 @@ def simulate(config_or_path, *, output_dir=None, overrides=None, progress=True):
         config = load_config(config_or_path, overrides=overrides)
     out_dir = Path(output_dir) if output_dir is not None else config.output.dir
     model = build_model(config)
-    integrator = ImplicitEuler(model, config.solver, config.step)
+    integrator = make_integrator(model, config.solver, config.step)
     state = model.initial_state()
     frames, every, substeps = config.time.frames, config.output.every, config.solver.substeps
     max_speed = config.solver.max_speed

@@ -26,8 +26,9 @@ from clothtool.errors import InputError
 
 PLANES = ("xy", "xz", "yz")
 BEND_MODELS = ("dihedral", "quadratic")
-METHODS = ("implicit",)
+METHODS = ("implicit", "mass-spring", "pbd", "xpbd", "projective", "explicit")
 PRECONDITIONERS = ("jacobi", "multigrid")
+PBD_VARIANTS = ("gauss-seidel", "jacobi")
 
 
 # ---------------------------------------------------------------------------- schema
@@ -194,6 +195,14 @@ class Solver:
     Newton stops early when the largest velocity correction is below
     ``newton_tolerance`` (m/s). A step whose speed exceeds ``max_speed`` (m/s)
     counts as a blow-up.
+
+    ``method`` picks the solver (``clothtool.sim.solvers``, ``docs/solvers.md``):
+    ``mass-spring`` uses the Newton/PCG keys above; ``pbd``, ``xpbd`` and
+    ``projective`` run ``iterations`` sweeps per step; ``pbd`` also reads
+    ``pbd_variant`` (gauss-seidel or jacobi), ``relaxation`` (Jacobi α),
+    ``pbd_stiffness`` (0, 1] and ``strain_limit`` (ε: structural springs kept in
+    [1 − ε, 1 + ε] of their rest length; 0 = off); ``explicit`` splits each step
+    into internal steps of at most ``cfl`` × its estimated critical step (0 = off).
     """
 
     method: str = _field("implicit", _choice(METHODS))
@@ -205,6 +214,13 @@ class Solver:
     newton_tolerance: float = _field(1.0e-6, _number(minimum=0))
     line_search: bool = _field(True, _flag)
     max_speed: float = _field(1000.0, _number(minimum=0, exclusive=True))
+    # the alternative methods (clothtool.sim.solvers, docs/solvers.md); ignored by the others
+    iterations: int = _field(10, _integer(minimum=1))  # pbd, xpbd, projective: sweeps per step
+    pbd_variant: str = _field("gauss-seidel", _choice(PBD_VARIANTS))  # pbd
+    relaxation: float = _field(1.0, _number(minimum=0))  # pbd jacobi: α in Σ Δ / (n_i + α)
+    pbd_stiffness: float = _field(1.0, _number(minimum=0, exclusive=True, maximum=1))  # pbd
+    strain_limit: float = _field(0.0, _number(minimum=0, maximum=1))  # pbd: ε, 0 = off
+    cfl: float = _field(0.5, _number(minimum=0, maximum=1))  # explicit: 0 = no automatic steps
 
 
 @dataclass(frozen=True)
@@ -288,6 +304,8 @@ def _read_yaml(path: Path):
         where = f" line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""
         problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
         raise InputError(f"{path}:{where}: YAML syntax error: {problem}") from None
+    except RecursionError:
+        raise InputError(f"{path}: YAML nested too deeply to be a config") from None
     if raw is None:
         raw = {}
     if not isinstance(raw, dict):

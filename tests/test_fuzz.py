@@ -1,0 +1,301 @@
+"""Fuzzing the PLY reader with hypothesis: random bytes, and valid files (ascii and
+binary) mutated in their header and body. Every outcome is a consistent PlyMesh or an
+InputError naming the file, never another exception, a hang or a large allocation."""
+
+import contextlib
+import os
+import signal
+import tracemalloc
+from datetime import timedelta
+
+import numpy as np
+import pytest
+from conftest import grid
+from hypothesis import HealthCheck, assume, given, settings
+from hypothesis import strategies as st
+
+from clothtool.errors import InputError
+from clothtool.io.ply import PlyMesh, parse_ply, write_ply
+
+# CLOTHTOOL_FUZZ_EXAMPLES=20000 pytest tests/test_fuzz.py  for a longer hunt
+FUZZ = settings(max_examples=int(os.environ.get("CLOTHTOOL_FUZZ_EXAMPLES", 300)), deadline=timedelta(seconds=2),
+                suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
+HANG_SECONDS = 10
+NAME = "fuzzed.ply"
+
+
+def seeds(tmp_path_factory):
+    """Valid files: ascii and binary, triangles and polygons, with and without extras."""
+    folder = tmp_path_factory.mktemp("seeds")
+    vertices, faces = grid(4, 3)
+    uv = {"s": vertices[:, 0].astype(np.float32), "t": vertices[:, 1].astype(np.float32)}
+    quads = np.array([[0, 1, 5, 4], [1, 2, 6, 5], [2, 3, 7, 6]])
+    out = {}
+    for name, kw in {
+        "binary": dict(faces=faces),
+        "binary_uv": dict(faces=faces, vertex_properties=uv),
+        "binary_quads": dict(faces=quads),
+        "ascii": dict(faces=faces, binary=False),
+        "ascii_uv_quads": dict(faces=quads, vertex_properties=uv, binary=False),
+    }.items():
+        path = folder / f"{name}.ply"
+        write_ply(path, vertices, **kw)
+        out[name] = path.read_bytes()
+    mixed = (b"ply\nformat binary_big_endian 1.0\nelement vertex 4\nproperty double x\n"
+             b"property double y\nproperty double z\nproperty uchar red\nelement face 2\n"
+             b"property list int uint vertex_indices\nend_header\n")
+    body = np.zeros(4, ">f8,>f8,>f8,u1")
+    body["f1"] = [0, 1, 1, 0]
+    body["f2"] = [0, 0, 1, 1]
+    mixed += body.tobytes()
+    mixed += np.array([4], ">i4").tobytes() + np.array([0, 1, 2, 3], ">u4").tobytes()
+    mixed += np.array([3], ">i4").tobytes() + np.array([0, 2, 3], ">u4").tobytes()
+    out["big_endian_mixed_polygons"] = mixed
+    ints = (b"ply\nformat binary_little_endian 1.0\nelement vertex 5\nproperty float x\n"
+            b"property float y\nproperty float z\nelement face 3\n"
+            b"property list int int vertex_indices\nproperty uchar flags\nend_header\n")
+    ints += np.arange(15, dtype="<f4").tobytes()
+    for poly in ([0, 1, 2], [0, 2, 3, 4], [1, 3, 4]):
+        ints += np.array([len(poly), *poly], "<i4").tobytes() + b"\x07"
+    out["int_counts_varying_polygons"] = ints
+    return out
+
+
+@pytest.fixture(scope="module")
+def seed_files(tmp_path_factory):
+    files = seeds(tmp_path_factory)
+    for data in files.values():
+        assert isinstance(parse_ply(data, NAME), PlyMesh)
+    return files
+
+
+@contextlib.contextmanager
+def no_hang(seconds=HANG_SECONDS):
+    def expire(signum, frame):
+        raise TimeoutError(f"parse_ply took more than {seconds} s")
+    old = signal.signal(signal.SIGALRM, expire)
+    signal.setitimer(signal.ITIMER_REAL, seconds)
+    try:
+        yield
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        signal.signal(signal.SIGALRM, old)
+
+
+def outcome(data, reuse=None):
+    """parse_ply's result or None for an InputError; checks the result is consistent and
+    that the peak allocation stays proportional to the input."""
+    tracemalloc.start()
+    try:
+        with no_hang():
+            mesh = parse_ply(data, NAME, reuse=reuse)
+    except InputError as exc:
+        assert NAME in str(exc) and "\n" not in str(exc)
+        return None
+    finally:
+        _, peak = tracemalloc.get_traced_memory()
+        tracemalloc.stop()
+        assert peak < (8 << 20) + 200 * len(data), f"peak allocation {peak} bytes"
+    n = len(mesh.vertices)
+    assert mesh.vertices.shape == (n, 3) and mesh.vertices.dtype == np.float64
+    assert mesh.faces.ndim == 2 and mesh.faces.shape[1] == 3 and mesh.faces.dtype == np.int64
+    assert mesh.face_source.shape == (len(mesh.faces),)
+    if mesh.faces.size:
+        assert 0 <= mesh.faces.min() and mesh.faces.max() < n
+    for values in mesh.vertex_properties.values():
+        assert len(values) == n
+    return mesh
+
+
+@FUZZ
+@given(st.binary(max_size=4096))
+def test_random_bytes(data):
+    outcome(data)
+
+
+@FUZZ
+@given(st.sampled_from([b"ply\n", b"ply\nformat ascii 1.0\n", b"ply\nformat binary_little_endian 1.0\n"]),
+       st.binary(max_size=2048))
+def test_random_bytes_after_a_plausible_start(start, data):
+    outcome(start + data)
+
+
+INTERESTING = [0, 1, 2, 3, 0x7F, 0x80, 0xFF, 0xFFFF, 2**31 - 1, 2**32 - 1, -1, -3, -(2**31)]
+
+
+@st.composite
+def edit(draw):
+    """Bytes to put in place of ``length`` bytes: a random byte, or an interesting
+    integer (negative, huge) packed as 1, 2 or 4 bytes in either byte order."""
+    if draw(st.booleans()):
+        return bytes([draw(st.sampled_from([0, 0xFF, 0x80, *b"9- \nx."]) | st.integers(0, 255))])
+    value = draw(st.sampled_from(INTERESTING))
+    size = draw(st.sampled_from([1, 2, 4]))
+    order = draw(st.sampled_from(["little", "big"]))
+    return (value % (1 << (8 * size))).to_bytes(size, order)
+
+
+@st.composite
+def mutated(draw, files):
+    """A seed file with 1-8 edits (overwrite, insert, delete) and maybe truncated. An edit
+    lands in the header, anywhere in the body, or in the last quarter (the face block)."""
+    name = draw(st.sampled_from(sorted(files)))
+    data = bytearray(files[name])
+    header_end = data.index(b"end_header") + len(b"end_header\n")
+    for _ in range(draw(st.integers(1, 8))):
+        where = draw(st.sampled_from(["header", "body", "tail"]))
+        lo, hi = {"header": (0, header_end), "body": (header_end, len(data)),
+                  "tail": (max(header_end, len(data) * 3 // 4), len(data))}[where]
+        if hi <= lo:
+            continue
+        at = draw(st.integers(lo, hi - 1))
+        kind = draw(st.sampled_from(["overwrite", "insert", "delete"]))
+        if kind == "delete":
+            del data[at:at + draw(st.integers(1, 4))]
+            continue
+        new = draw(edit())
+        if kind == "overwrite":
+            data[at:at + len(new)] = new
+        else:
+            data[at:at] = new
+    if draw(st.integers(0, 3)) == 0:
+        data = data[:draw(st.integers(0, len(data)))]
+    return name, bytes(data)
+
+
+TOKENS = ["0", "-1", "1", "3", "255", "4294967295", "1000000000000", "99999999999999999999",
+          "float", "double", "uchar", "int", "uint", "list", "vertex", "face", "x", "s",
+          "vertex_indices", "binary_little_endian", "binary_big_endian", "ascii", "end_header",
+          "nan", "inf", "1e308", "", "\u00e9"]
+
+
+@st.composite
+def retokened(draw, files):
+    """A seed file with 1-3 whitespace-separated words (header or ascii body) replaced by
+    troublesome ones: huge and negative counts, other types, non-ASCII."""
+    name = draw(st.sampled_from(sorted(files)))
+    data = files[name]
+    header_end = data.index(b"end_header")
+    text_end = len(data) if b"format ascii" in data[:header_end] else header_end
+    words = data[:text_end].decode("ascii").split(" ")
+    for _ in range(draw(st.integers(1, 3))):
+        i = draw(st.integers(0, len(words) - 1))
+        lines = words[i].split("\n")
+        j = draw(st.integers(0, len(lines) - 1))
+        lines[j] = draw(st.sampled_from(TOKENS))
+        words[i] = "\n".join(lines)
+    return name, " ".join(words).encode("utf-8") + data[text_end:]
+
+
+@FUZZ
+@given(st.data())
+def test_mutated_files(seed_files, data):
+    name, mutant = data.draw(mutated(seed_files))
+    outcome(mutant)
+    outcome(mutant, reuse=parse_ply(seed_files[name], NAME))  # the face-block reuse path
+
+
+@FUZZ
+@given(st.data())
+def test_retokened_files(seed_files, data):
+    name, mutant = data.draw(retokened(seed_files))
+    assume(mutant != seed_files[name])
+    outcome(mutant)
+    outcome(mutant, reuse=parse_ply(seed_files[name], NAME))
+
+
+@pytest.mark.parametrize("count", ["1000000000000", "4294967295", "200000000"])
+@pytest.mark.parametrize("fmt", ["binary_little_endian", "ascii"])
+@pytest.mark.parametrize("element", ["vertex", "face"])
+def test_huge_declared_counts_allocate_nothing(seed_files, fmt, element, count):
+    seed = seed_files["ascii" if fmt == "ascii" else "binary"]
+    start = seed.index(f"element {element} ".encode())
+    stop = seed.index(b"\n", start)
+    data = seed[:start] + f"element {element} {count}".encode() + seed[stop:]
+    assert outcome(data) is None  # and the peak allocation check inside outcome()
+
+
+# ---------------------------------------------------------------------------- configs
+
+CONFIG = """\
+mesh:
+  grid: {nx: 6, ny: 5, width: 1.0, height: 0.8, plane: xz}
+material: {density: 0.2, stretch: 5000.0, shear: 50.0, bend: 1.0e-5, damping: 0.01}
+scene:
+  gravity: [0, -9.81, 0]
+  pins: [top_corners, 3]
+  colliders:
+    - sphere: {center: [0, -0.5, 0], radius: 0.3}
+    - plane: {point: [0, -1, 0], normal: [0, 1, 0]}
+solver: {method: implicit, substeps: 1, tolerance: 1.0e-6, max_iterations: 500}
+time: {fps: 30, frames: 120}
+output: {dir: out/, every: 1}
+"""
+
+KEYS = ["mesh", "grid", "ply", "nx", "ny", "width", "height", "plane", "material", "density",
+        "stretch", "shear", "bend", "damping", "scene", "gravity", "pins", "colliders", "sphere",
+        "center", "radius", "point", "normal", "solver", "method", "substeps", "tolerance",
+        "max_iterations", "time", "fps", "frames", "output", "dir", "every", "bogus", ""]
+SCALARS = (st.none() | st.booleans() | st.integers(-10**20, 10**20) | st.floats()
+           | st.sampled_from(KEYS + ["xy", "top_corners", "1e5", "implicit", "-0", "nan"])
+           | st.text(max_size=8))
+VALUES = st.recursive(SCALARS, lambda inner: st.lists(inner, max_size=4)
+                      | st.dictionaries(st.sampled_from(KEYS) | st.text(max_size=4), inner,
+                                        max_size=4), max_leaves=20)
+
+
+@pytest.fixture(scope="module")
+def load_config():
+    return pytest.importorskip("clothtool.sim.config").load_config
+
+
+def config_outcome(load, source):
+    with no_hang():
+        try:
+            return load(source)
+        except InputError:  # (a key with a line break in it is flattened by the CLI)
+            return None
+
+
+@FUZZ
+@given(st.data())
+def test_mutated_config_text(load_config, tmp_path_factory, data):
+    text = bytearray(CONFIG.encode())
+    for _ in range(data.draw(st.integers(1, 6))):
+        at = data.draw(st.integers(0, len(text) - 1))
+        kind = data.draw(st.sampled_from(["overwrite", "insert", "delete"]))
+        byte = data.draw(st.sampled_from(list(b"[]{}:,-#&*!|>'\"\t\n 9.e") + [0xC3, 0xFF])
+                         | st.integers(0, 255))
+        if kind == "overwrite":
+            text[at] = byte
+        elif kind == "insert":
+            text.insert(at, byte)
+        else:
+            del text[at]
+    path = tmp_path_factory.getbasetemp() / "fuzzed.yaml"
+    path.write_bytes(bytes(text))
+    config_outcome(load_config, path)
+
+
+@FUZZ
+@given(st.dictionaries(st.sampled_from(KEYS), VALUES, max_size=6))
+def test_random_config_structures(load_config, raw):
+    config_outcome(load_config, raw)
+
+
+@FUZZ
+@given(st.sampled_from(["mesh", "material", "scene", "solver", "time", "output"]), VALUES)
+def test_one_section_replaced(load_config, section, value):
+    import yaml
+
+    raw = yaml.safe_load(CONFIG)
+    raw[section] = value
+    config_outcome(load_config, raw)
+
+
+@pytest.mark.parametrize("text", ["mesh: " + "[" * 20000, "mesh: " + "{a: " * 20000,
+                                  "a: &a [x, x]\nb: [*a, *a, *a]\n", "\x00\x01", "mesh: !!python/object:os.system {}"])
+def test_pathological_yaml(load_config, tmp_path, text):
+    path = tmp_path / "c.yaml"
+    path.write_text(text)
+    assert config_outcome(load_config, path) is None
