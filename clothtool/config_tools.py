@@ -56,6 +56,7 @@ solver:
   substeps: 1           # solver steps per frame
   tolerance: 1.0e-6     # relative residual of the linear solve
   max_iterations: 500   # conjugate-gradient iterations per solve, at most
+  preconditioner: multigrid  # multigrid (aggregation V-cycle) or jacobi (block Jacobi)
   newton_iterations: 1  # Newton steps per solver step (1 = linearised implicit Euler)
   newton_tolerance: 1.0e-6  # m/s, Newton stops when the largest velocity correction is below
   line_search: true     # backtracking line search on the Newton steps

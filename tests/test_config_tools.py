@@ -18,6 +18,7 @@ SPEC_DEFAULTS = {  # spec §5, entry by entry, and the simulator's optional sett
                             {"plane": {"point": [0, -1, 0], "normal": [0, 1, 0]}}],
               "collision_margin": 1.0e-3},
     "solver": {"method": "implicit", "substeps": 1, "tolerance": 1.0e-6, "max_iterations": 500,
+               "preconditioner": "multigrid",
                "newton_iterations": 1, "newton_tolerance": 1.0e-6, "line_search": True,
                "max_speed": 1000.0, "iterations": 10, "pbd_variant": "gauss-seidel",
                "relaxation": 1.0, "pbd_stiffness": 1.0, "strain_limit": 0.0, "cfl": 0.5},

@@ -10,10 +10,11 @@ import scipy.sparse.linalg as spla
 from clothtool.errors import NumericalError
 from clothtool.io.ply import read_ply, write_ply
 from clothtool.sim.api import simulate
-from clothtool.sim.blocksparse import block_multiply, filtered_pcg
+from clothtool.sim.blocksparse import BlockPattern, block_multiply, filtered_pcg
 from clothtool.sim.config import load_config
 from clothtool.sim.integrator import ImplicitEuler
 from clothtool.sim.model import build_model
+from clothtool.sim.multigrid import NO_MULTIGRID, Hierarchy, setup_levels, vcycle
 
 
 def config(**sections):
@@ -64,7 +65,7 @@ def test_block_product_and_filtered_pcg_match_scipy():
     b = rng.normal(size=x.shape)
     sol = np.zeros_like(b)
     its, res = filtered_pcg(p.row_ptr, p.col, values, p.diag, b, sol, model.kind,
-                            np.zeros_like(b), True, 1e-10, 5000)
+                            np.zeros_like(b), True, 1e-10, 5000, NO_MULTIGRID)
     assert res <= 1e-10 and its > 0
     free = np.repeat(model.free, 3)
     expected = spla.spsolve(matrix[free][:, free].tocsc(), b.ravel()[free])
@@ -178,6 +179,77 @@ def test_same_sag_at_two_resolutions(tmp_path):
     assert fine == pytest.approx(coarse, rel=0.05)
 
 
+def constrained_system(nx=12):
+    """A stretched 12×12 system with two pinned and three sliding vertices."""
+    cfg = load_config(config(mesh={"grid": {"nx": nx, "ny": nx}}, scene={"pins": ["top_corners"]}))
+    model = build_model(cfg)
+    integ = ImplicitEuler(model, cfg.solver, cfg.step)
+    rng = np.random.default_rng(2)
+    x = model.mesh.positions * 1.05 + 0.01 * rng.normal(size=model.mesh.positions.shape)
+    values, matrix = assembled_system(model, integ, x)
+    kind = model.kind.copy()
+    normal = np.zeros((model.n_vertices, 3))
+    held = [5, 30, 77]
+    kind[held] = 2
+    normal[held] = rng.normal(size=(3, 3))
+    normal[held] /= np.linalg.norm(normal[held], axis=1)[:, None]
+    return model, values, matrix, kind, normal
+
+
+def filter_matrix(kind, normal):
+    blocks = [np.zeros((3, 3)) if k == 1 else np.eye(3) - np.outer(nv, nv) if k == 2 else np.eye(3)
+              for k, nv in zip(kind, normal)]
+    return sp.block_diag(blocks).toarray()
+
+
+def test_multigrid_preconditioner_is_symmetric_positive_definite_on_the_free_space():
+    model, values, matrix, kind, normal = constrained_system()
+    p = model.pattern
+    graph = BlockPattern(model.n_vertices, model.faces)
+    hierarchy = Hierarchy(p.row_ptr, p.col, (graph.row_ptr, graph.col))
+    mg = hierarchy.arrays()
+    assert hierarchy.node_off.size >= 3  # at least two levels below the mesh
+    setup_levels(values, kind, normal, True, mg)
+    n = 3 * model.n_vertices
+    s = filter_matrix(kind, normal)
+    b = np.empty((n, n))
+    out = np.empty((model.n_vertices, 3))
+    for a in range(n):
+        e = np.zeros(n)
+        e[a] = 1.0
+        vcycle((s @ e).reshape(-1, 3), out, mg)
+        b[:, a] = s @ out.ravel()
+    np.testing.assert_allclose(b, b.T, atol=1e-12 * np.abs(b).max())
+    u, sing, _ = np.linalg.svd(s)
+    free_space = u[:, sing > 0.5]
+    assert np.linalg.eigvalsh(free_space.T @ b @ free_space).min() > 0
+
+
+@pytest.mark.parametrize("preconditioner", ["jacobi", "multigrid"])
+def test_filtered_pcg_with_each_preconditioner_matches_a_direct_solve(preconditioner):
+    model, values, matrix, kind, normal = constrained_system()
+    p = model.pattern
+    mg = NO_MULTIGRID
+    if preconditioner == "multigrid":
+        graph = BlockPattern(model.n_vertices, model.faces)
+        mg = Hierarchy(p.row_ptr, p.col, (graph.row_ptr, graph.col)).arrays()
+    rng = np.random.default_rng(5)
+    b = rng.normal(size=(model.n_vertices, 3))
+    sol = np.zeros_like(b)
+    its, res = filtered_pcg(p.row_ptr, p.col, values, p.diag, b, sol, kind, normal, True,
+                            1e-10, 5000, mg)
+    assert res <= 1e-10
+    s = filter_matrix(kind, normal)
+    a = matrix.toarray()
+    # S A S y = S b on range(S), (I − S) y = 0
+    expected = np.linalg.lstsq(s @ a @ s + (np.eye(len(s)) - s), s @ b.ravel(), rcond=None)[0]
+    np.testing.assert_allclose(sol.ravel(), expected, rtol=1e-6, atol=1e-10 * np.abs(expected).max())
+    if preconditioner == "multigrid":
+        jacobi_its, _ = filtered_pcg(p.row_ptr, p.col, values, p.diag, b, np.zeros_like(b), kind,
+                                     normal, True, 1e-10, 5000, NO_MULTIGRID)
+        assert its < jacobi_its
+
+
 def test_sliding_constraint_keeps_the_prescribed_normal_motion():
     """The filter S = I − nnᵀ: the normal component stays as given, the rest solves the system."""
     cfg = load_config(config())
@@ -196,7 +268,8 @@ def test_sliding_constraint_keeps_the_prescribed_normal_motion():
     sol = np.zeros((n, 3))
     sol[held] = 0.01 * normal[held]  # prescribed normal motion
     p = model.pattern
-    its, res = filtered_pcg(p.row_ptr, p.col, values, p.diag, b, sol, kind, normal, True, 1e-10, 5000)
+    its, res = filtered_pcg(p.row_ptr, p.col, values, p.diag, b, sol, kind, normal, True, 1e-10,
+                            5000, NO_MULTIGRID)
     assert res <= 1e-10
     np.testing.assert_allclose(np.einsum("ij,ij->i", sol[held], normal[held]), 0.01, rtol=1e-12)
     r = (b.ravel() - matrix @ sol.ravel()).reshape(n, 3)
@@ -226,6 +299,18 @@ def test_stiff_cloth_is_stable_at_one_step_per_frame(tmp_path):
     assert max(r["max_stretch"] for r in rows) < 1.2
     last = frames(tmp_path / "out")[-1].vertices
     assert np.isfinite(last).all() and last[:, 1].min() > -1.6  # hangs, does not fly off
+
+
+def test_very_stiff_cloth_at_huge_steps_still_moves(tmp_path):
+    """The first Newton step from a flat sheet overshoots (no out-of-plane stiffness at
+    rest); the line search must shrink it until the energy drops, not give up."""
+    cfg = config(mesh={"grid": {"nx": 12, "ny": 12, "plane": "xz"}},
+                 material={"stretch": 1e7}, scene={"pins": ["top_corners"]},
+                 time={"fps": 1, "frames": 2})
+    run(tmp_path, cfg)
+    rows = stats(tmp_path / "out")
+    assert rows[-1]["gravity"] < rows[0]["gravity"] - 1e-4  # it fell a little
+    assert rows[-1]["max_stretch"] < 1.01
 
 
 def test_blow_up_names_the_frame_and_keeps_earlier_frames(tmp_path):

@@ -21,10 +21,6 @@ class SimulationResult:
     max_stretch: float
     wall_s: float
 
-    @property
-    def stats_path(self):
-        return self.output_dir / "stats.csv"
-
     def describe(self):
         per_step = 1000.0 * self.wall_s / max(self.steps, 1)
         return (f"{self.frames_written} frames in {self.output_dir}/ ({self.steps} steps, "

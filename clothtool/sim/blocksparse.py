@@ -24,6 +24,10 @@ continues if that one is not.
 import numpy as np
 from numba import njit
 
+from clothtool.sim.filter import PINNED, apply_filter
+from clothtool.sim.multigrid import setup_levels, vcycle
+from clothtool.sim.vec3 import inverse3
+
 
 class BlockPattern:
     """Block-CSR pattern from element vertex tuples, with each element's block slots."""
@@ -107,7 +111,6 @@ def _apply_inverse(inv, r, z):
         z[i, 2] = b[2, 0] * r[i, 0] + b[2, 1] * r[i, 1] + b[2, 2] * r[i, 2]
 
 
-FREE, PINNED, SLIDING = 0, 1, 2  # constraint kind of a vertex
 
 
 @njit(cache=True)
@@ -117,23 +120,8 @@ def block_jacobi(values, diag, kind):
     inv = np.zeros((n, 3, 3))
     for i in range(n):
         if kind[i] != PINNED:
-            inv[i] = np.linalg.inv(values[diag[i]])
+            inverse3(values[diag[i]], inv[i])
     return inv
-
-
-@njit(cache=True)
-def apply_filter(r, kind, normal):
-    """r ← S r: zero for pinned vertices, the tangential part for sliding ones."""
-    for i in range(r.shape[0]):
-        if kind[i] == PINNED:
-            r[i, 0] = 0.0
-            r[i, 1] = 0.0
-            r[i, 2] = 0.0
-        elif kind[i] == SLIDING:
-            rn = r[i, 0] * normal[i, 0] + r[i, 1] * normal[i, 1] + r[i, 2] * normal[i, 2]
-            r[i, 0] -= rn * normal[i, 0]
-            r[i, 1] -= rn * normal[i, 1]
-            r[i, 2] -= rn * normal[i, 2]
 
 
 @njit(cache=True)
@@ -164,22 +152,30 @@ def residual(row_ptr, col, values, b, x, r):
 
 
 @njit(cache=True)
-def _precondition(inv, r, kind, normal, constrained, z):
-    _apply_inverse(inv, r, z)
+def _precondition(inv, r, kind, normal, constrained, z, mg):
+    """z = S P⁻¹ r: block Jacobi, or the multigrid V-cycle when mg holds a hierarchy."""
+    if len(mg[0]) > 1:
+        vcycle(r, z, mg)
+    else:
+        _apply_inverse(inv, r, z)
     if constrained:
         apply_filter(z, kind, normal)
 
 
 @njit(cache=True)
-def filtered_pcg(row_ptr, col, values, diag, b, x, kind, normal, constrained, tol, max_iter):
+def filtered_pcg(row_ptr, col, values, diag, b, x, kind, normal, constrained, tol, max_iter, mg):
     """Solve S(A x − b) = 0 from x, whose constrained components (I − S)x stay as given.
 
     ``kind`` (N,) int8 and ``normal`` (N, 3) define S; ``constrained`` says whether
-    any vertex is constrained (else the filter is skipped).
+    any vertex is constrained (else the filter is skipped). ``mg``: the arrays of a
+    :class:`~clothtool.sim.multigrid.Hierarchy` for the V-cycle preconditioner, or
+    ``NO_MULTIGRID`` for block Jacobi.
     Returns (iterations, relative true residual ‖S(b − Ax)‖ / ‖S b‖).
     """
     n = b.shape[0]
     inv = block_jacobi(values, diag, kind)
+    if len(mg[0]) > 1:
+        setup_levels(values, kind, normal, constrained, mg)
     sb = b.copy()
     if constrained:
         apply_filter(sb, kind, normal)
@@ -192,7 +188,7 @@ def filtered_pcg(row_ptr, col, values, diag, b, x, kind, normal, constrained, to
         apply_filter(r, kind, normal)
     if b_norm == 0.0:
         b_norm = 1.0  # nothing to solve for but the prescribed components: absolute test
-    _precondition(inv, r, kind, normal, constrained, z)
+    _precondition(inv, r, kind, normal, constrained, z, mg)
     p = z.copy()
     rz = _dot(r, z)
     res = np.sqrt(_dot(r, r)) / b_norm
@@ -206,7 +202,7 @@ def filtered_pcg(row_ptr, col, values, diag, b, x, kind, normal, constrained, to
             res = np.sqrt(_dot(r, r)) / b_norm
             if res <= tol:
                 break
-            _precondition(inv, r, kind, normal, constrained, z)
+            _precondition(inv, r, kind, normal, constrained, z, mg)
             p[:] = z
             rz = _dot(r, z)
         block_multiply(row_ptr, col, values, p, q)
@@ -218,7 +214,7 @@ def filtered_pcg(row_ptr, col, values, diag, b, x, kind, normal, constrained, to
         alpha = rz / pq
         _axpy(alpha, p, x)
         _axpy(-alpha, q, r)
-        _precondition(inv, r, kind, normal, constrained, z)
+        _precondition(inv, r, kind, normal, constrained, z, mg)
         rz_new = _dot(r, z)
         _xpby(z, rz_new / rz, p)
         rz = rz_new

@@ -20,7 +20,7 @@ vertex: edges and faces can still cut a collider thinner than the mesh spacing.
 import numpy as np
 from numba import njit
 
-from clothtool.sim.blocksparse import FREE, SLIDING
+from clothtool.sim.filter import FREE, SLIDING
 
 
 @njit(cache=True)

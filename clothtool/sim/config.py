@@ -27,6 +27,7 @@ from clothtool.errors import InputError
 PLANES = ("xy", "xz", "yz")
 BEND_MODELS = ("dihedral", "quadratic")
 METHODS = ("implicit", "mass-spring", "pbd", "xpbd", "projective", "explicit")
+PRECONDITIONERS = ("jacobi", "multigrid")
 PBD_VARIANTS = ("gauss-seidel", "jacobi")
 
 
@@ -190,6 +191,7 @@ class Solver:
     """Implicit Euler: ``newton_iterations`` Newton steps per solver step, each a PCG solve.
 
     ``tolerance`` is the PCG stopping test on the true relative residual;
+    ``preconditioner`` is block Jacobi or an aggregation multigrid V-cycle;
     Newton stops early when the largest velocity correction is below
     ``newton_tolerance`` (m/s). A step whose speed exceeds ``max_speed`` (m/s)
     counts as a blow-up.
@@ -207,6 +209,7 @@ class Solver:
     substeps: int = _field(1, _integer(minimum=1))
     tolerance: float = _field(1.0e-6, _number(minimum=0, exclusive=True, maximum=1))
     max_iterations: int = _field(500, _integer(minimum=1))
+    preconditioner: str = _field("multigrid", _choice(PRECONDITIONERS))
     newton_iterations: int = _field(1, _integer(minimum=1))
     newton_tolerance: float = _field(1.0e-6, _number(minimum=0))
     line_search: bool = _field(True, _flag)
@@ -246,9 +249,6 @@ class Config:
     def step(self):
         """Solver time step h = 1 / (fps · substeps), seconds."""
         return 1.0 / (self.time.fps * self.solver.substeps)
-
-    def describe_source(self):
-        return str(self.source) if self.source is not None else "config"
 
 
 SECTIONS = {"mesh": MeshSpec, "material": Material, "scene": Scene,

@@ -13,23 +13,46 @@ Each Newton step solves (M/h² + K(x) + D) Δx = −∇E(x) by PCG, starting fro
 x = x_n; the first one from x_n is exactly Baraff–Witkin's linearised step
 (M − h ∂f/∂v − h² ∂f/∂x) Δv = h (f + h ∂f/∂x v_n). The PCG starts from the
 previous motion Δx = h v_n, which is nearly the answer in slowly changing
-states (a guess with the free-fall term h² g would be far off at rest). With ``line_search`` the step length is halved until
-E does not increase, so no step raises the energy; Newton stops after
-``newton_iterations`` steps or when the largest velocity correction
-‖Δx‖∞/h is below ``newton_tolerance``.
+states (a guess with the free-fall term h² g would be far off at rest). With
+``line_search`` the step length is halved until E does not increase, so no
+step raises the energy; Newton stops after ``newton_iterations`` steps or when
+the largest velocity correction ‖Δx‖∞/h is below ``newton_tolerance``.
+
+Vertices held by pins or collider contacts (``collide``) are constrained in the
+solve through the filter of ``filter``/``blocksparse``.
 """
 
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 
 from clothtool.errors import NumericalError
 from clothtool.sim.bending import dihedral_assemble, dihedral_total_energy, quadratic_gradient
-from clothtool.sim.blocksparse import block_multiply, filtered_pcg, residual
+from clothtool.sim.blocksparse import BlockPattern, block_multiply, filtered_pcg, residual
 from clothtool.sim.collide import apply_friction, contact_constraints, resolve_collisions
 from clothtool.sim.membrane import max_principal_stretch, membrane_assemble, membrane_total_energy
+from clothtool.sim.multigrid import COARSEST, NO_MULTIGRID, Hierarchy
 
-MAX_HALVINGS = 10
+MAX_HALVINGS = 30  # down to 2⁻³⁰: a descent direction always decreases E for a small enough step
+
+
+@njit(cache=True)
+def mass_weighted(x, y, mass):
+    """Σ_v m_v x_v·y_v (plain loops: numpy's BLAS would start threads that spin on 2 cores)."""
+    total = 0.0
+    for i in range(x.shape[0]):
+        total += mass[i] * (x[i, 0] * y[i, 0] + x[i, 1] * y[i, 1] + x[i, 2] * y[i, 2])
+    return total
+
+
+@njit(cache=True)
+def gravity_potential(x, mass, g):
+    """−Σ_v m_v g·x_v."""
+    total = 0.0
+    for i in range(x.shape[0]):
+        total -= mass[i] * (g[0] * x[i, 0] + g[1] * x[i, 1] + g[2] * x[i, 2])
+    return total
 
 
 @dataclass
@@ -56,6 +79,11 @@ class ImplicitEuler:
         self._normal = np.zeros((n, 3))
         self._contact = np.full(n, -1, dtype=np.int64)
         self._released = np.zeros(n, dtype=np.bool_)  # contacts that pulled last step
+        self._mg = NO_MULTIGRID  # block Jacobi; also for meshes too small to coarsen
+        if solver.preconditioner == "multigrid" and n > COARSEST:
+            triangles = BlockPattern(n, model.faces)
+            self._mg = Hierarchy(model.pattern.row_ptr, model.pattern.col,
+                                 graph=(triangles.row_ptr, triangles.col)).arrays()
 
     # ------------------------------------------------------------------ energies
 
@@ -99,21 +127,21 @@ class ImplicitEuler:
             return 0.0
         p = self.model.pattern
         block_multiply(p.row_ptr, p.col, self._damping, dx, self._tmp)
-        return 0.5 * float(np.sum(dx * self._tmp))
+        return 0.5 * float(np.sum(dx * self._tmp))  # elementwise: no BLAS
 
     def _potential(self, x, x_n, inertia_target, elastic):
         """E(x) given W(x) = elastic."""
-        m = self._mass3
         d = x - inertia_target
-        kinetic = 0.5 * float(np.sum(m * d * d)) / (self.h * self.h)
-        gravity = -float(self.model.mass @ (x @ self.model.gravity))
+        kinetic = 0.5 * mass_weighted(d, d, self.model.mass) / (self.h * self.h)
+        gravity = gravity_potential(x, self.model.mass, self.model.gravity)
         return kinetic + gravity + elastic + self._damping_energy(x - x_n)
 
     def energies(self, state):
         """(kinetic, elastic, gravitational potential) of a state, J."""
         model = self.model
-        kinetic = 0.5 * float(model.mass @ np.einsum("ij,ij->i", state.v, state.v))
-        return kinetic, self.elastic_energy(state.x), -float(model.mass @ (state.x @ model.gravity))
+        kinetic = 0.5 * mass_weighted(state.v, state.v, model.mass)
+        return (kinetic, self.elastic_energy(state.x),
+                gravity_potential(state.x, model.mass, model.gravity))
 
     def max_stretch(self, state):
         return max_principal_stretch(state.x, self.model.faces, self.model.dinv)
@@ -156,7 +184,7 @@ class ImplicitEuler:
                 dx = np.zeros_like(x)  # constrained components were reached in the first step
             cg_its, res = filtered_pcg(pattern.row_ptr, pattern.col, values, pattern.diag, -grad,
                                        dx, kind, self._normal, constrained, solver.tolerance,
-                                       solver.max_iterations)
+                                       solver.max_iterations, self._mg)
             report.newton_iterations += 1
             report.cg_iterations += cg_its
             report.residual = max(report.residual, res)

@@ -12,7 +12,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from clothtool.errors import InputError
-from clothtool.sim.blocksparse import FREE, PINNED, BlockPattern, scatter_blocks
+from clothtool.sim.blocksparse import BlockPattern, scatter_blocks
+from clothtool.sim.filter import FREE, PINNED
 from clothtool.sim.config import Plane, Sphere
 from clothtool.sim.mesh import build_rest_mesh, hinges, rest_edge_matrices
 from clothtool.sim.pins import resolve_pins

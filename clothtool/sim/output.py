@@ -54,10 +54,6 @@ class FrameWriter:
         self._stats.writerow(STATS_COLUMNS)
         self._stats_file.flush()
 
-    @property
-    def stats_path(self):
-        return self.out_dir / "stats.csv"
-
     def write_frame(self, frame, positions):
         write_ply(frame_path(self.out_dir, frame), positions, self.faces,
                   vertex_properties=self.properties)

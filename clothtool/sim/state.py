@@ -10,6 +10,3 @@ class State:
     x: np.ndarray  # (N, 3) positions, m
     v: np.ndarray  # (N, 3) velocities, m/s
     time: float = 0.0
-
-    def copy(self):
-        return State(self.x.copy(), self.v.copy(), self.time)

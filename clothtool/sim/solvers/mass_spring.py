@@ -26,6 +26,7 @@ import numpy as np
 
 from clothtool.errors import NumericalError
 from clothtool.sim.blocksparse import BlockPattern, block_multiply, filtered_pcg
+from clothtool.sim.multigrid import NO_MULTIGRID
 from clothtool.sim.solvers.base import SolverBase, StepReport
 from clothtool.sim.solvers.springs import build_springs, spring_assemble, spring_energy
 
@@ -91,7 +92,7 @@ class MassSpringImplicit(SolverBase):
                 dx[model.pinned] = 0.0
             cg_its, residual = filtered_pcg(p.row_ptr, p.col, values, p.diag, -grad, dx, model.kind,
                                             self._normal, model.has_pins, solver.tolerance,
-                                            solver.max_iterations)
+                                            solver.max_iterations, NO_MULTIGRID)
             report.newton_iterations += 1
             report.cg_iterations += cg_its
             report.residual = max(report.residual, residual)

@@ -1,0 +1,310 @@
+"""Aggregation multigrid, used as the PCG preconditioner (``solver.preconditioner``).
+
+Block-Jacobi PCG needs O(√κ) iterations and κ grows like k h²/m, so stiff cloth
+at one step per frame takes hundreds. A multilevel preconditioner removes the
+smooth error that Jacobi cannot reach:
+
+- **Setup, once per mesh** (only the pattern): greedy aggregation (Vaněk, Mandel
+  & Brezina 1996, phases 1–3: an aggregate is a vertex and its free neighbours,
+  left-overs join a neighbouring aggregate) of the triangle adjacency, then of
+  each coarse pattern, until at most ``COARSEST`` nodes remain. Each block slot
+  (i, j) of a level maps to the slot (agg i, agg j) of the next.
+- **Per solve**: with piecewise-constant prolongation P, the Galerkin coarse
+  matrix PᵀAP is the sum of the fine 3×3 blocks over each slot map — one pass.
+  The fine operator is the filtered S A S + (I − S) that PCG works with, so
+  coarse levels see pinned and sliding vertices as held. The coarsest level is
+  factored densely (Cholesky).
+- **Cycle**: on the finest level additive, B = ωD⁻¹ + P B₁ Pᵀ (no product with
+  the fine matrix: that costs more than the iterations it saves); on the coarse
+  levels a multiplicative V-cycle B₁ with one block-Jacobi sweep ωD⁻¹ before and
+  one after each coarse correction. Both parts are symmetric positive definite,
+  so B is a valid PCG preconditioner. Measured on the hanging sheet at 64×64
+  (tolerance 1e-3): 114 iterations instead of more than 500 with block Jacobi.
+"""
+
+import numpy as np
+from numba import njit
+
+from clothtool.sim.filter import FREE, PINNED, SLIDING
+from clothtool.sim.vec3 import inverse3
+
+COARSEST = 48  # nodes at which the hierarchy stops (dense Cholesky of ≤ 3·48 unknowns)
+OMEGA = 0.6  # Jacobi smoothing weight (λmax(D⁻¹A) ≤ 2 for these matrices)
+
+
+@njit(cache=True)
+def _aggregate(row_ptr, col):
+    """Greedy aggregation of a graph; returns (aggregate of each node, number of aggregates)."""
+    n = row_ptr.shape[0] - 1
+    agg = np.full(n, -1, dtype=np.int64)
+    count = 0
+    # phase 1: a node whose neighbours are all free starts an aggregate with them
+    for i in range(n):
+        if agg[i] >= 0:
+            continue
+        free = True
+        for s in range(row_ptr[i], row_ptr[i + 1]):
+            if agg[col[s]] >= 0:
+                free = False
+                break
+        if free:
+            for s in range(row_ptr[i], row_ptr[i + 1]):
+                agg[col[s]] = count
+            count += 1
+    # phase 2: left-overs join an aggregate of a neighbour
+    first = agg.copy()
+    for i in range(n):
+        if first[i] >= 0:
+            continue
+        for s in range(row_ptr[i], row_ptr[i + 1]):
+            if first[col[s]] >= 0:
+                agg[i] = first[col[s]]
+                break
+    # phase 3: what is still alone forms aggregates with its unaggregated neighbours
+    for i in range(n):
+        if agg[i] >= 0:
+            continue
+        for s in range(row_ptr[i], row_ptr[i + 1]):
+            if agg[col[s]] < 0:
+                agg[col[s]] = count
+        agg[i] = count
+        count += 1
+    return agg, count
+
+
+class Hierarchy:
+    """Levels of coarse patterns, flattened into arrays with per-level offsets for numba.
+
+    Level 0 is the matrix pattern (``row_ptr``, ``col``); its aggregation follows
+    ``graph`` = (row_ptr, col) of the triangle adjacency (bending widens the
+    matrix pattern, which would make aggregates too large).
+    """
+
+    def __init__(self, row_ptr, col, graph):
+        levels = [(row_ptr, col)]
+        aggs = []
+        while len(levels[-1][0]) - 1 > COARSEST:
+            rp, cl = levels[-1]
+            n = len(rp) - 1
+            agg, nc = _aggregate(*(graph if not aggs else (rp, cl)))
+            if nc >= n:  # cannot coarsen further
+                break
+            rows = np.repeat(np.arange(n), np.diff(rp))
+            key = agg[rows] * nc + agg[cl]
+            ukey = np.unique(key)
+            counts = np.bincount(ukey // nc, minlength=nc)
+            levels.append((np.concatenate([[0], np.cumsum(counts)]).astype(np.int64),
+                           (ukey % nc).astype(np.int64)))
+            aggs.append((agg, np.searchsorted(ukey, key).astype(np.int64)))
+        if not aggs:
+            raise ValueError("multigrid needs a mesh with more than COARSEST vertices")
+        sizes = [len(rp) - 1 for rp, _ in levels]
+        nnz = [len(cl) for _, cl in levels]
+        self.node_off = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
+        self.block_off = np.concatenate([[0], np.cumsum(nnz)]).astype(np.int64)
+        self.row_ptr = np.concatenate([rp for rp, _ in levels]).astype(np.int64)
+        self.row_off = np.concatenate([[0], np.cumsum([s + 1 for s in sizes])]).astype(np.int64)
+        self.col = np.concatenate([cl for _, cl in levels]).astype(np.int64)
+        self.agg = np.concatenate([a for a, _ in aggs]).astype(np.int64)
+        self.slot_map = np.concatenate([m for _, m in aggs]).astype(np.int64)
+        # coarse matrices only (levels ≥ 1): values[s − block_off[1]] is block s
+        self.values = np.zeros((self.block_off[-1] - self.block_off[1], 3, 3))
+        self.diag_inv = np.zeros((self.node_off[-1], 3, 3))
+        self.coarsest = np.zeros((3 * sizes[-1], 3 * sizes[-1]))
+        self.r = np.zeros((self.node_off[-1], 3))
+        self.z = np.zeros((self.node_off[-1], 3))
+        self.t = np.zeros((self.node_off[-1], 3))
+
+    def arrays(self):
+        """The tuple the numba kernels take (``NO_MULTIGRID`` has the same layout, no levels)."""
+        return (self.node_off, self.block_off, self.row_ptr, self.row_off, self.col, self.agg,
+                self.slot_map, self.values, self.diag_inv, self.coarsest, self.r, self.z, self.t)
+
+
+NO_MULTIGRID = (np.zeros(1, np.int64), np.zeros(1, np.int64), np.zeros(1, np.int64),
+                np.zeros(1, np.int64), np.zeros(0, np.int64), np.zeros(0, np.int64),
+                np.zeros(0, np.int64), np.zeros((0, 3, 3)), np.zeros((0, 3, 3)), np.zeros((0, 0)),
+                np.zeros((0, 3)), np.zeros((0, 3)), np.zeros((0, 3)))
+
+
+@njit(cache=True)
+def _filtered_block(b, i, j, kind, normal, out):
+    """out = S_i B S_j (+ (I − S_i) on the diagonal, so held vertices stay non-singular)."""
+    out[:, :] = b
+    for side in range(2):
+        v = i if side == 0 else j
+        if kind[v] == PINNED:
+            out[:, :] = 0.0
+        elif kind[v] == SLIDING:
+            n = normal[v]
+            for q in range(3):
+                if side == 0:  # rows: (I − nnᵀ) out
+                    d = n[0] * out[0, q] + n[1] * out[1, q] + n[2] * out[2, q]
+                    for p in range(3):
+                        out[p, q] -= n[p] * d
+                else:  # columns: out (I − nnᵀ)
+                    d = out[q, 0] * n[0] + out[q, 1] * n[1] + out[q, 2] * n[2]
+                    for p in range(3):
+                        out[q, p] -= d * n[p]
+    if i == j:
+        if kind[i] == PINNED:
+            for p in range(3):
+                out[p, p] += 1.0
+        elif kind[i] == SLIDING:
+            for p in range(3):
+                for q in range(3):
+                    out[p, q] += normal[i, p] * normal[i, q]
+
+
+@njit(cache=True)
+def setup_levels(fine, kind, normal, constrained, mg):
+    """Coarse matrices, block-diagonal inverses of every level, Cholesky of the coarsest."""
+    node_off, block_off, row_ptr, row_off, col, agg, slot_map, values, diag_inv, coarsest = mg[:10]
+    levels = node_off.shape[0] - 1
+    base = block_off[1]
+    values[:, :, :] = 0.0
+    block = np.empty((3, 3))
+    # level 0: filtered fine blocks → diagonal inverses and the level-1 sums
+    for i in range(node_off[1]):
+        for s in range(row_ptr[i], row_ptr[i + 1]):
+            j = col[s]
+            if constrained and (kind[i] != FREE or kind[j] != FREE):
+                _filtered_block(fine[s], i, j, kind, normal, block)
+            else:
+                block[:, :] = fine[s]
+            if j == i:
+                inverse3(block, diag_inv[i])
+            target = values[slot_map[s]]
+            for p in range(3):
+                for q in range(3):
+                    target[p, q] += block[p, q]
+    for lev in range(1, levels):
+        n0, b0, r0 = node_off[lev], block_off[lev], row_off[lev]
+        for i in range(node_off[lev + 1] - n0):
+            for s in range(row_ptr[r0 + i], row_ptr[r0 + i + 1]):
+                src = values[b0 + s - base]
+                if col[b0 + s] == i:
+                    inverse3(src, diag_inv[n0 + i])
+                if lev < levels - 1:
+                    target = values[block_off[lev + 1] + slot_map[b0 + s] - base]
+                    for p in range(3):
+                        for q in range(3):
+                            target[p, q] += src[p, q]
+    last = levels - 1
+    n0, b0, r0 = node_off[last], block_off[last], row_off[last]
+    coarsest[:, :] = 0.0
+    for i in range(node_off[last + 1] - n0):
+        for s in range(row_ptr[r0 + i], row_ptr[r0 + i + 1]):
+            j = col[b0 + s]
+            for p in range(3):
+                for q in range(3):
+                    coarsest[3 * i + p, 3 * j + q] = values[b0 + s - base, p, q]
+    _cholesky(coarsest)
+
+
+@njit(cache=True)
+def _cholesky(a):
+    """In-place Cholesky factor (lower triangle) of a symmetric positive definite matrix."""
+    n = a.shape[0]
+    for j in range(n):
+        d = a[j, j]
+        for k in range(j):
+            d -= a[j, k] * a[j, k]
+        d = np.sqrt(d)
+        a[j, j] = d
+        for i in range(j + 1, n):
+            s = a[i, j]
+            for k in range(j):
+                s -= a[i, k] * a[j, k]
+            a[i, j] = s / d
+
+
+@njit(cache=True)
+def _cholesky_solve(lower, r, z, lo, hi):
+    """z[lo:hi] = A⁻¹ r[lo:hi] with A = L Lᵀ, for (n, 3) slices flattened row-major."""
+    n = 3 * (hi - lo)
+    y = np.empty(n)
+    for i in range(n):
+        s = r[lo + i // 3, i % 3]
+        for k in range(i):
+            s -= lower[i, k] * y[k]
+        y[i] = s / lower[i, i]
+    for i in range(n - 1, -1, -1):
+        s = y[i]
+        for k in range(i + 1, n):
+            s -= lower[k, i] * y[k]
+        y[i] = s / lower[i, i]
+    for i in range(n):
+        z[lo + i // 3, i % 3] = y[i]
+
+
+@njit(cache=True)
+def _coarse_multiply(lev, mg, x, y):
+    """y = A_lev x for a coarse level (lev ≥ 1)."""
+    node_off, block_off, row_ptr, row_off, col, _, _, values = mg[:8]
+    n0, b0, r0, base = node_off[lev], block_off[lev], row_off[lev], block_off[1]
+    for i in range(node_off[lev + 1] - n0):
+        y0 = 0.0
+        y1 = 0.0
+        y2 = 0.0
+        for s in range(row_ptr[r0 + i], row_ptr[r0 + i + 1]):
+            j = n0 + col[b0 + s]
+            b = values[b0 + s - base]
+            y0 += b[0, 0] * x[j, 0] + b[0, 1] * x[j, 1] + b[0, 2] * x[j, 2]
+            y1 += b[1, 0] * x[j, 0] + b[1, 1] * x[j, 1] + b[1, 2] * x[j, 2]
+            y2 += b[2, 0] * x[j, 0] + b[2, 1] * x[j, 1] + b[2, 2] * x[j, 2]
+        y[n0 + i, 0] = y0
+        y[n0 + i, 1] = y1
+        y[n0 + i, 2] = y2
+
+
+@njit(cache=True)
+def _jacobi_sweep(lo, hi, diag_inv, res, z):
+    """z += ω D⁻¹ res on nodes lo..hi."""
+    for i in range(lo, hi):
+        b = diag_inv[i]
+        for p in range(3):
+            z[i, p] += OMEGA * (b[p, 0] * res[i, 0] + b[p, 1] * res[i, 1] + b[p, 2] * res[i, 2])
+
+
+@njit(cache=True)
+def _restrict(lo, hi, c0, agg, src, dst):
+    """dst[c0 + agg[i]] += src[i] (Pᵀ)."""
+    for i in range(lo, hi):
+        c = c0 + agg[i]
+        for p in range(3):
+            dst[c, p] += src[i, p]
+
+
+@njit(cache=True)
+def vcycle(rhs, out, mg):
+    """out = B rhs: ωD⁻¹ rhs + P B₁ Pᵀ rhs, B₁ a V-cycle on the coarse levels."""
+    node_off, _, _, _, _, agg, _, _, diag_inv, coarsest, r, z, t = mg
+    levels = node_off.shape[0] - 1
+    n = node_off[1]
+    r[n:] = 0.0
+    _restrict(0, n, n, agg, rhs, r)
+    for lev in range(1, levels - 1):  # down: pre-smooth, restrict the residual
+        lo, hi = node_off[lev], node_off[lev + 1]
+        z[lo:hi] = 0.0
+        _jacobi_sweep(lo, hi, diag_inv, r, z)
+        _coarse_multiply(lev, mg, z, t)
+        for i in range(lo, hi):
+            for p in range(3):
+                t[i, p] = r[i, p] - t[i, p]
+        _restrict(lo, hi, hi, agg, t, r)
+    _cholesky_solve(coarsest, r, z, node_off[levels - 1], node_off[levels])
+    for lev in range(levels - 2, 0, -1):  # up: prolong the correction, post-smooth
+        lo, hi = node_off[lev], node_off[lev + 1]
+        for i in range(lo, hi):
+            for p in range(3):
+                z[i, p] += z[hi + agg[i], p]
+        _coarse_multiply(lev, mg, z, t)
+        for i in range(lo, hi):
+            for p in range(3):
+                t[i, p] = r[i, p] - t[i, p]
+        _jacobi_sweep(lo, hi, diag_inv, t, z)
+    for i in range(n):  # finest level: additive smoother plus prolonged coarse correction
+        for p in range(3):
+            out[i, p] = z[n + agg[i], p]
+    _jacobi_sweep(0, n, diag_inv, rhs, out)
