@@ -1,4 +1,4 @@
-# make demo   set up .venv and analyze the bundled sample_data/
+# make demo   set up .venv, analyze the bundled sample_data/, simulate and analyze a hanging sheet
 # make test   set up .venv and run the test suite
 # make bench  set up .venv (with benchmark extras) and write bench-results/
 PYTHON ?= python3
@@ -16,7 +16,12 @@ $(VENV)/.installed: pyproject.toml
 demo: $(VENV)/.installed
 	mkdir -p demo-out
 	$(CLOTHTOOL) analyze sample_data/sheet -o demo-out/sheet.h5
-	$(CLOTHTOOL) analyze sample_data/sheet -o demo-out/sheet_uv.h5 --reference uv
+	$(CLOTHTOOL) analyze sample_data/sheet -o demo-out/sheet_3d.h5 --reference first --kabsch -q
+	$(CLOTHTOOL) info demo-out/sheet_3d.h5 | head -20
+	$(CLOTHTOOL) simulate sample_data/hanging_sheet.yaml -o demo-out/hanging_sheet
+	$(CLOTHTOOL) analyze demo-out/hanging_sheet -o demo-out/hanging_sheet.h5 --reference uv
+	$(CLOTHTOOL) plot demo-out/hanging_sheet.h5 -o demo-out/hanging_sheet.png
+	@echo "open demo-out/*.xdmf in ParaView; figure: demo-out/hanging_sheet.png"
 
 test: $(VENV)/.installed
 	$(PY) -m pytest -q

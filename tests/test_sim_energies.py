@@ -6,8 +6,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
-from clothtool.sim.bending import (dihedral_angle, dihedral_element, dihedral_total_energy,
-                                   quadratic_element, quadratic_weights)
+from clothtool.sim.bending import (dihedral_angle, dihedral_angle_gradient, dihedral_element,
+                                   dihedral_total_energy, quadratic_element, quadratic_weights)
 from clothtool.sim.config import GridSpec
 from clothtool.sim.membrane import membrane_element, membrane_energy
 from clothtool.sim.mesh import grid_mesh, hinges
@@ -185,3 +185,17 @@ def test_bending_gauss_newton_hessian_is_psd(seed):
     x = random_hinge(np.random.default_rng(seed))
     _, _, h = dihedral(x, 0.2, 1.3, project=True)
     assert np.linalg.eigvalsh(h).min() >= -1e-10 * np.abs(h).max()
+
+
+@pytest.mark.parametrize("hinge", [
+    [[0, 0, 0], [1, 0, 0], [0.5, 0, 0], [0.5, -1, 0.2]],   # triangle (i, j, k) collapsed onto the edge
+    [[0, 0, 0], [0, 0, 0], [0.5, 1, 0], [0.5, -1, 0.2]],   # zero-length edge
+])
+def test_degenerate_hinge_bends_nothing(hinge):
+    x = np.array(hinge, float)
+    g = np.ones(12)
+    assert np.isnan(dihedral_angle(x[0], x[1], x[2], x[3]))
+    coef, rest = np.array([1.0]), np.array([0.0])
+    assert dihedral_total_energy(x, np.array([[0, 1, 2, 3]]), rest, coef) == 0.0
+    assert np.isnan(dihedral_angle_gradient(x[0], x[1], x[2], x[3], g))
+    assert not g.any()

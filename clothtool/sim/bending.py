@@ -24,12 +24,26 @@ Gauss–Newton part 2c ∇θ∇θᵀ, PSD by construction; the exact one is for 
 Quadratic model (Bergou et al. 2006, for flat rest states): E = c ‖Σ_v w_v x_v‖²
 with w_v = ∇_v θ · n̄ at rest (the linearisation of θ about the flat state);
 its Hessian 2c w wᵀ ⊗ I₃ is constant and PSD.
+
+Degenerate hinges: where the shared edge has zero length or a triangle's height is
+below HINGE_TOL of the edge (‖N‖ ≤ HINGE_TOL·‖e‖², e.g. cloth pushed onto a collider
+or collapsed onto a line), θ is undefined; θ is then NaN, ∇θ = 0, and the hinge adds
+no energy, force or stiffness until it opens again.
 """
 
 import numpy as np
 from numba import njit
 
 from clothtool.sim.vec3 import cross, dot, load, scale, sub
+
+HINGE_TOL = 1e-12
+
+
+@njit(cache=True)
+def _degenerate(ll, nk, nl):
+    """Zero-length edge, or a triangle of the hinge with height ≤ HINGE_TOL·‖e‖."""
+    limit = HINGE_TOL * HINGE_TOL * ll * ll
+    return ll == 0.0 or dot(nk, nk) <= limit or dot(nl, nl) <= limit
 
 
 @njit(cache=True)
@@ -43,17 +57,22 @@ def dihedral_angle(xi, xj, xk, xl):
     e = sub(xj, xi)
     nk = cross(e, sub(xk, xi))
     nl = cross(sub(xi, xj), sub(xl, xj))
+    if _degenerate(dot(e, e), nk, nl):
+        return np.nan
     return np.arctan2(dot(cross(nk, nl), e) / np.sqrt(dot(e, e)), dot(nk, nl))
 
 
 @njit(cache=True)
 def dihedral_angle_gradient(xi, xj, xk, xl, grad):
-    """θ and ∇θ (12,), order (i, j, k, l)."""
+    """θ and ∇θ (12,), order (i, j, k, l); NaN and ∇θ = 0 for a degenerate hinge."""
     e = sub(xj, xi)
     ll = dot(e, e)
     length = np.sqrt(ll)
     nk = cross(e, sub(xk, xi))
     nl = cross(sub(xi, xj), sub(xl, xj))
+    if _degenerate(ll, nk, nl):
+        grad[:] = 0.0
+        return np.nan
     gk = scale(-length / dot(nk, nk), nk)
     gl = scale(-length / dot(nl, nl), nl)
     sk = dot(sub(xk, xi), e) / ll
@@ -152,6 +171,8 @@ def dihedral_assemble(x, hinge, theta_rest, coef, slots, grad, values):
         theta = dihedral_angle_gradient(load(x, hinge[h, 0]), load(x, hinge[h, 1]),
                                         load(x, hinge[h, 2]), load(x, hinge[h, 3]), g)
         delta = theta - theta_rest[h]
+        if delta != delta:  # degenerate hinge (now or at rest): no bending there
+            continue
         c2 = 2.0 * coef[h]
         total += coef[h] * delta * delta
         for a in range(4):
@@ -182,7 +203,8 @@ def dihedral_total_energy(x, hinge, theta_rest, coef):
     for h in range(hinge.shape[0]):
         d = dihedral_angle(load(x, hinge[h, 0]), load(x, hinge[h, 1]), load(x, hinge[h, 2]),
                            load(x, hinge[h, 3])) - theta_rest[h]
-        total += coef[h] * d * d
+        if d == d:  # NaN: degenerate hinge, no energy
+            total += coef[h] * d * d
     return total
 
 
@@ -193,7 +215,10 @@ def quadratic_weights(rest3d, hinge):
     g = np.empty(12)
     for h in range(hinge.shape[0]):
         xi, xj, xk = load(rest3d, hinge[h, 0]), load(rest3d, hinge[h, 1]), load(rest3d, hinge[h, 2])
-        dihedral_angle_gradient(xi, xj, xk, load(rest3d, hinge[h, 3]), g)
+        theta = dihedral_angle_gradient(xi, xj, xk, load(rest3d, hinge[h, 3]), g)
+        if theta != theta:  # degenerate at rest: no quadratic bending here
+            w[h] = 0.0
+            continue
         n = cross(sub(xj, xi), sub(xk, xi))
         n = scale(1.0 / np.sqrt(dot(n, n)), n)
         for v in range(4):

@@ -83,6 +83,8 @@ def dihedral_gradient(x, hinge, theta_rest, coef, grad, v, damp, out):
                                         load(x, hinge[h, 2]), load(x, hinge[h, 3]), g)
         c2 = 2.0 * coef[h]
         delta = theta - theta_rest[h]
+        if delta != delta:  # degenerate hinge: no bending there
+            continue
         gv = 0.0
         if damp > 0.0:
             for a in range(4):
