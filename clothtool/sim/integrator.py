@@ -55,6 +55,17 @@ def gravity_potential(x, mass, g):
     return total
 
 
+def backtracking_step(potential, x, dx, e0, max_halvings):
+    """The first step 1, 1/2, 1/4, … (at most ``max_halvings`` halvings) with
+    potential(x + step·dx) ≤ e0 = potential(x); 0 when none is found."""
+    step = 1.0
+    for _ in range(max_halvings):
+        if potential(x + step * dx) <= e0:
+            return step
+        step *= 0.5
+    return 0.0
+
+
 @dataclass
 class StepReport:
     newton_iterations: int = 0
@@ -192,14 +203,9 @@ class ImplicitEuler:
                 raise NumericalError("the linear solve produced non-finite values")
             step = 1.0
             if solver.line_search:
-                e0 = self._potential(x, x_n, target, elastic)
-                for _ in range(MAX_HALVINGS):
-                    trial = x + step * dx
-                    if self._potential(trial, x_n, target, self.elastic_energy(trial)) <= e0:
-                        break
-                    step *= 0.5
-                else:
-                    step = 0.0
+                step = backtracking_step(
+                    lambda y: self._potential(y, x_n, target, self.elastic_energy(y)),
+                    x, dx, self._potential(x, x_n, target, elastic), MAX_HALVINGS)
             if step > 0.0:
                 x += step * dx
             if step == 0.0 or np.max(np.abs(step * dx)) <= solver.newton_tolerance * h:

@@ -26,6 +26,7 @@ import numpy as np
 
 from clothtool.errors import NumericalError
 from clothtool.sim.blocksparse import BlockPattern, block_multiply, filtered_pcg
+from clothtool.sim.integrator import backtracking_step
 from clothtool.sim.multigrid import NO_MULTIGRID
 from clothtool.sim.solvers.base import SolverBase, StepReport
 from clothtool.sim.solvers.springs import build_springs, spring_assemble, spring_energy
@@ -100,14 +101,9 @@ class MassSpringImplicit(SolverBase):
                 raise NumericalError("the linear solve produced non-finite values")
             step = 1.0
             if solver.line_search:
-                e0 = self._potential(x, x_n, target, elastic)
-                for _ in range(MAX_HALVINGS):
-                    trial = x + step * dx
-                    if self._potential(trial, x_n, target, self.elastic_energy(trial)) <= e0:
-                        break
-                    step *= 0.5
-                else:
-                    step = 0.0
+                step = backtracking_step(
+                    lambda y: self._potential(y, x_n, target, self.elastic_energy(y)),
+                    x, dx, self._potential(x, x_n, target, elastic), MAX_HALVINGS)
             if step > 0.0:
                 x += step * dx
             if step == 0.0 or np.max(np.abs(step * dx)) <= solver.newton_tolerance * h:
