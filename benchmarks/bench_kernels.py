@@ -16,8 +16,8 @@ import numba
 import numpy as np
 
 from benchmarks.common import markdown_table, write_csv
-from clothtool.analysis.deformation2d import (FIELDS, allocate_fields, deformation_fields,
-                                              reference_from_positions)
+from clothtool.analysis.deformation2d import (FIELDS, allocate_fields, allocate_rest,
+                                              deformation_fields, reference_from_positions)
 
 M = 100_000
 
@@ -91,7 +91,7 @@ def numpy_svd(F):
 def clothtool_kernel(x_ref, x_def, faces, dtype):
     ref = reference_from_positions(x_ref, faces, 1e-8)
     out = allocate_fields(len(faces), ("stretch", "R", "U"), dtype)
-    deformation_fields(x_def, faces, *ref, 1e-8, *(out[n] for n in FIELDS))
+    deformation_fields(x_def, faces, *ref, 1e-8, *(out[n] for n in FIELDS), *allocate_rest(0))
     return out["stretch"], out["R"], out["U"]
 
 

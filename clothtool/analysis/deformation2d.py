@@ -66,32 +66,48 @@ def _edge_matrix(x, i0, i1, i2, tol):
     return a, b, area2 / a, t1x, t1y, t1z, t2x, t2y, t2z, np.uint8(0)
 
 
+@njit(cache=True, inline="always")
+def _store_rest(k, a, b, c, t1x, t1y, t1z, t2x, t2y, t2z, flag, dinv, basis, flags):
+    """Rest-state data of triangle k from its edge matrix: D_r⁻¹ = [[1/a, −b/(ac)], [0, 1/c]],
+    the tangent basis rows t1, t2, and its flag (a degenerate triangle is bit 0 here)."""
+    if flag == FLAG_DEFORMED_DEGENERATE:
+        flag = FLAG_REFERENCE_DEGENERATE
+    flags[k] = flag
+    if flag != 0:
+        dinv[k] = np.nan
+        basis[k] = np.nan
+        return
+    dinv[k, 0, 0] = 1.0 / a
+    dinv[k, 0, 1] = -b / (a * c)
+    dinv[k, 1, 0] = 0.0
+    dinv[k, 1, 1] = 1.0 / c
+    basis[k, 0, 0], basis[k, 0, 1], basis[k, 0, 2] = t1x, t1y, t1z
+    basis[k, 1, 0], basis[k, 1, 1], basis[k, 1, 2] = t2x, t2y, t2z
+
+
+def allocate_rest(m):
+    """Empty (D_r⁻¹ (M,2,2), basis (M,2,3), flags (M,)) for :func:`reference_from_positions`
+    or the ``next_rest`` outputs of :func:`deformation_fields`."""
+    return np.empty((m, 2, 2)), np.empty((m, 2, 3)), np.empty(m, np.uint8)
+
+
 @njit(cache=True, parallel=True, nogil=True)
+def _rest_from_positions(x, faces, tol, dinv, basis, flags):
+    for k in prange(faces.shape[0]):
+        a, b, c, t1x, t1y, t1z, t2x, t2y, t2z, flag = _edge_matrix(
+            x, faces[k, 0], faces[k, 1], faces[k, 2], tol)
+        _store_rest(k, a, b, c, t1x, t1y, t1z, t2x, t2y, t2z, flag, dinv, basis, flags)
+
+
 def reference_from_positions(x, faces, tol):
     """Rest-state data of every triangle from 3D positions.
 
     Returns D_r⁻¹ (M, 2, 2), the reference tangent basis (M, 2, 3) (rows t1, t2),
     and flags (M,) uint8 (bit 0 degenerate, bit 2 non-finite).
     """
-    m = faces.shape[0]
-    dinv = np.full((m, 2, 2), np.nan)
-    basis = np.full((m, 2, 3), np.nan)
-    flags = np.zeros(m, np.uint8)
-    for k in prange(m):
-        a, b, c, t1x, t1y, t1z, t2x, t2y, t2z, flag = _edge_matrix(
-            x, faces[k, 0], faces[k, 1], faces[k, 2], tol)
-        if flag == FLAG_DEFORMED_DEGENERATE:
-            flag = FLAG_REFERENCE_DEGENERATE
-        flags[k] = flag
-        if flag != 0:
-            continue
-        dinv[k, 0, 0] = 1.0 / a
-        dinv[k, 0, 1] = -b / (a * c)
-        dinv[k, 1, 0] = 0.0
-        dinv[k, 1, 1] = 1.0 / c
-        basis[k, 0, 0], basis[k, 0, 1], basis[k, 0, 2] = t1x, t1y, t1z
-        basis[k, 1, 0], basis[k, 1, 1], basis[k, 1, 2] = t2x, t2y, t2z
-    return dinv, basis, flags
+    rest = allocate_rest(faces.shape[0])
+    _rest_from_positions(x, faces, tol, *rest)
+    return rest
 
 
 @njit(cache=True, parallel=True, nogil=True)
@@ -173,16 +189,23 @@ def principal_2x2(u00, u01, u11, absdet):
 
 @njit(cache=True, parallel=True, nogil=True)
 def deformation_fields(x, faces, dinv, basis, ref_flags, tol,
-                       F, C, U, R, strain, stretch, directions, area_ratio, flags):
+                       F, C, U, R, strain, stretch, directions, area_ratio, flags,
+                       next_dinv, next_basis, next_flags):
     """Fill the per-triangle fields of one pair from deformed positions ``x``.
 
     Every output is either full size (M, …) or empty (shape[0] == 0), in which case
     it is neither computed nor written. Outputs may be float32 or float64; all
-    arithmetic is float64.
+    arithmetic is float64. ``next_*``: if full size, also the rest-state data of ``x``
+    (as :func:`reference_from_positions`), for the next pair of a 'previous' sequence,
+    at the cost of a few stores instead of a second pass.
     """
     m = faces.shape[0]
     for k in prange(m):
-        a, b, c, _, _, _, _, _, _, flag = _edge_matrix(x, faces[k, 0], faces[k, 1], faces[k, 2], tol)
+        a, b, c, t1x, t1y, t1z, t2x, t2y, t2z, flag = _edge_matrix(
+            x, faces[k, 0], faces[k, 1], faces[k, 2], tol)
+        if next_flags.shape[0]:
+            _store_rest(k, a, b, c, t1x, t1y, t1z, t2x, t2y, t2z, flag,
+                        next_dinv, next_basis, next_flags)
         flag |= ref_flags[k]
         if flags.shape[0]:
             flags[k] = flag
@@ -277,5 +300,5 @@ def analyze_pair(reference, deformed, faces, *, fields=FIELDS, uv=None, uv_scale
         ref = reference_from_positions(np.ascontiguousarray(reference, dtype=np.float64), faces, tol)
     out = allocate_fields(len(faces), fields, dtype)
     deformation_fields(np.ascontiguousarray(deformed, dtype=np.float64), faces, *ref, tol,
-                       *(out[name] for name in FIELDS))
+                       *(out[name] for name in FIELDS), *allocate_rest(0))
     return {name: out[name] for name in FIELDS if name in fields}

@@ -16,7 +16,8 @@ import numpy as np
 
 from clothtool import __version__, interrupt
 from clothtool.analysis.deformation2d import (DEGENERATE_TOL, FIELDS, allocate_fields,
-                                              deformation_fields, reference_from_positions,
+                                              allocate_rest, deformation_fields,
+                                              reference_from_positions,
                                               reference_from_uv)
 from clothtool.errors import InputError
 from clothtool.io.frames import FrameReader, discover_frames
@@ -131,6 +132,10 @@ class _Rest:
         if self.external is not None and self.external[0] == "mesh":
             return self.external[1]
         return self.reader.first.vertices
+
+    def put(self, index, data):
+        """Rest-state data of frame ``index`` computed elsewhere (see ``next_rest``)."""
+        self._key, self._data = index, data
 
     def get(self, index, positions):
         """(D_r⁻¹, basis, flags) of reference ``index`` whose positions are ``positions``."""
@@ -258,7 +263,13 @@ def _stream_pairs(pairs, reader, rest, writer, summary, fields, progress, extras
         x = last[1] if last[0] == d else reader.positions(d)
         last = (d, x)
         buffers = writer.buffers()
-        deformation_fields(x, faces, *ref, DEGENERATE_TOL, *(buffers[n] for n in FIELDS))
+        # In a 'previous' sequence this frame is the next pair's reference: get its rest
+        # data from the same pass (fresh arrays: the writer thread may still read these).
+        next_rest = allocate_rest(len(faces) if rest.reference == "previous" else 0)
+        deformation_fields(x, faces, *ref, DEGENERATE_TOL, *(buffers[n] for n in FIELDS),
+                           *next_rest)
+        if len(next_rest[2]):
+            rest.put(d, next_rest)
         _accumulate(summary, buffers, fields)
         if variant:
             variant.compute(x_ref if x_uv is None else x_uv, x, buffers)
