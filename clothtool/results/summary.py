@@ -33,18 +33,18 @@ def pair_summary(stretch, area_ratio, flags):
     """The float and count columns of one pair (everything but pair/reference/deformed)
     from its (M, 2) stretches, (M,) area ratios and (M,) flags."""
     stretch, area_ratio = np.asarray(stretch), np.asarray(area_ratio)
-    valid = np.isfinite(stretch).all(axis=1)
-    if valid.all():  # the common case: views, no copies
+    if np.isfinite(stretch.sum()):  # the common case, checked with one cheap pass: views, no copies
         l1, l2, j = stretch[:, 0], stretch[:, 1], area_ratio
     else:
+        valid = np.isfinite(stretch).all(axis=1)
         l1, l2, j = stretch[valid, 0], stretch[valid, 1], area_ratio[valid]
     row = {}
     for name, q in (("lambda1", l1), ("lambda2", l2), ("J", j)):
         values = np.percentile(q, PERCENTILES) if q.size else np.full(len(PERCENTILES), np.nan)
         row.update({f"{name}_p{p}": float(v) for p, v in zip(PERCENTILES, values)})
-    n = max(int(valid.sum()), 1)
-    row["compressed"] = float(np.count_nonzero(l2 < 1 - TOL)) / n if valid.any() else np.nan
-    row["stretched"] = float(np.count_nonzero(l1 > 1 + TOL)) / n if valid.any() else np.nan
+    n = len(l1)  # unflagged triangles
+    row["compressed"] = float(np.count_nonzero(l2 < 1 - TOL)) / n if n else np.nan
+    row["stretched"] = float(np.count_nonzero(l1 > 1 + TOL)) / n if n else np.nan
     row["flagged"] = int(np.count_nonzero(flags))
     for name, bit in FLAG_BITS:
         row[name] = int(np.count_nonzero(np.asarray(flags) & bit))
