@@ -150,6 +150,8 @@ def run(out_dir):
         fh.write(markdown_table(errors, ["storage", "field", "max_abs_error"]))
         fh.write("\n### Start-up and memory (medians of 5 for times)\n\n")
         fh.write(markdown_table(start, ["what", "seconds"]).replace("| seconds |", "| value |"))
+    for result in [*work.glob("*.h5"), *work.glob("*.xdmf")]:  # gigabytes; the inputs stay for reruns
+        result.unlink()
     print((out_dir / "analyze.md").read_text())
 
 
