@@ -108,26 +108,6 @@ def spring_energy(x, si, sj, rest, k):
 
 
 @njit(cache=True)
-def spring_gradient(x, si, sj, rest, k, grad):
-    """Adds ∇W to grad (N, 3); returns W."""
-    total = 0.0
-    for e in range(si.shape[0]):
-        i, j = si[e], sj[e]
-        d0, d1, d2 = x[i, 0] - x[j, 0], x[i, 1] - x[j, 1], x[i, 2] - x[j, 2]
-        length = max(np.sqrt(d0 * d0 + d1 * d1 + d2 * d2), EPS)
-        c = length - rest[e]
-        total += 0.5 * k[e] * c * c
-        s = k[e] * c / length
-        grad[i, 0] += s * d0
-        grad[i, 1] += s * d1
-        grad[i, 2] += s * d2
-        grad[j, 0] -= s * d0
-        grad[j, 1] -= s * d1
-        grad[j, 2] -= s * d2
-    return total
-
-
-@njit(cache=True)
 def spring_assemble(x, si, sj, rest, k, slots, grad, values):
     """W(x); adds ∇W to grad and the PSD-clamped spring Hessians to the block values.
 
