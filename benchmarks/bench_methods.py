@@ -21,7 +21,6 @@ its distance to the reference is reported beside the tables.
 """
 
 import math
-import os
 import pathlib
 import sys
 import time
@@ -29,7 +28,7 @@ import time
 import numpy as np
 
 from benchmarks.common import markdown_table, write_csv
-from clothtool.sim.solvers.compare import Run, position_error, run_in_memory
+from clothtool.sim.solvers.compare import position_error, run_in_memory
 
 NX = 24
 FRAMES = 30  # 1 s at 30 fps

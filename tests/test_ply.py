@@ -19,7 +19,7 @@ def ply_bytes(vertices, faces, fmt="binary_little_endian", coord="float", extra=
         props += [("nx", "f4"), ("ny", "f4"), ("nz", "f4"), ("red", "u1"), ("green", "u1"),
                   ("blue", "u1"), ("s", "f4"), ("t", "f4")]
     names = {"f4": "float", "f8": "double", "u1": "uchar"}
-    head = [f"ply", f"format {fmt} 1.0", "comment made by a test", f"element vertex {len(vertices)}"]
+    head = ["ply", f"format {fmt} 1.0", "comment made by a test", f"element vertex {len(vertices)}"]
     head += [f"property {names[t]} {n}" for n, t in props]
     head += [f"element face {len(faces)}", f"property list {count_type} {index_type} vertex_indices",
              "end_header"]

@@ -55,6 +55,20 @@ def gravity_potential(x, mass, g):
     return total
 
 
+def fem_elastic_energy(model, x):
+    """W(x) of the finite-element material: stretch + shear (Kim 2020) + bending."""
+    total = 0.0
+    if model.has_membrane:
+        total += membrane_total_energy(x, model.faces, model.dinv, model.area,
+                                       model.k_stretch, model.k_shear)
+    if model.bend_model == "dihedral":
+        total += dihedral_total_energy(x, model.hinge, model.hinge_rest_angle, model.hinge_coef)
+    elif model.bend_model == "quadratic":  # an empty gradient array: energy only
+        total += quadratic_gradient(x, model.hinge, model.hinge_weights, model.hinge_coef,
+                                    np.zeros((0, 3)))
+    return total
+
+
 def backtracking_step(potential, x, dx, e0, max_halvings):
     """The first step 1, 1/2, 1/4, … (at most ``max_halvings`` halvings) with
     potential(x + step·dx) ≤ e0 = potential(x); 0 when none is found."""
@@ -86,7 +100,6 @@ class ImplicitEuler:
         self._values = model.pattern.zeros()
         self._damping = model.pattern.zeros() if model.damping > 0 else None
         self._tmp = np.zeros((n, 3))
-        self._no_grad = np.zeros((0, 3))
         self._normal = np.zeros((n, 3))
         self._contact = np.full(n, -1, dtype=np.int64)
         self._released = np.zeros(n, dtype=np.bool_)  # contacts that pulled last step
@@ -100,17 +113,7 @@ class ImplicitEuler:
 
     def elastic_energy(self, x):
         """W(x): stretch + shear + bending."""
-        model = self.model
-        total = 0.0
-        if model.has_membrane:
-            total += membrane_total_energy(x, model.faces, model.dinv, model.area,
-                                           model.k_stretch, model.k_shear)
-        if model.bend_model == "dihedral":
-            total += dihedral_total_energy(x, model.hinge, model.hinge_rest_angle, model.hinge_coef)
-        elif model.bend_model == "quadratic":
-            total += quadratic_gradient(x, model.hinge, model.hinge_weights, model.hinge_coef,
-                                        self._no_grad)
-        return total
+        return fem_elastic_energy(self.model, x)
 
     def _elastic_derivatives(self, x):
         """W(x); fills self._grad with ∇W and self._values with the projected Hessian K."""

@@ -25,11 +25,10 @@ import math
 import numpy as np
 from numba import njit
 
-from clothtool.sim.bending import dihedral_angle_gradient, dihedral_assemble
+from clothtool.sim.bending import dihedral_angle_gradient, dihedral_assemble, quadratic_gradient
 from clothtool.sim.collide import resolve_collisions
-from clothtool.sim.membrane import (EPS, _deformation, membrane_assemble, membrane_element,
-                                    membrane_total_energy)
-from clothtool.sim.bending import dihedral_total_energy, quadratic_gradient
+from clothtool.sim.integrator import fem_elastic_energy
+from clothtool.sim.membrane import EPS, _deformation, membrane_assemble, membrane_element
 from clothtool.sim.solvers.base import SolverBase, StepReport
 from clothtool.sim.vec3 import add, dot, load, scale
 
@@ -159,20 +158,9 @@ class SymplecticEuler(SolverBase):
         n = model.n_vertices
         self._force = np.zeros((n, 3))
         self._inv_mass = 1.0 / model.mass
-        self._empty = np.zeros((0, 3))
 
     def elastic_energy(self, x):
-        model = self.model
-        total = 0.0
-        if model.has_membrane:
-            total += membrane_total_energy(x, model.faces, model.dinv, model.area,
-                                           model.k_stretch, model.k_shear)
-        if model.bend_model == "dihedral":
-            total += dihedral_total_energy(x, model.hinge, model.hinge_rest_angle, model.hinge_coef)
-        elif model.bend_model == "quadratic":
-            total += quadratic_gradient(x, model.hinge, model.hinge_weights, model.hinge_coef,
-                                        self._empty)
-        return total
+        return fem_elastic_energy(self.model, x)
 
     def _forces(self, x, v):
         """force = ∇W(x) + β K(x) v (the sign convention of a gradient)."""
