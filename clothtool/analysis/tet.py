@@ -1,0 +1,273 @@
+"""Per-tetrahedron deformation of volumetric meshes, numba kernels, float64 arithmetic.
+
+For a tetrahedron with corners p1…p4, D = [p1 − p4, p2 − p4, p3 − p4] (3×3, columns);
+D_r of the reference, G = D_d of the deformed tetrahedron. The linear FEM deformation
+gradient (Müller et al., "Game Physics Pearls" ch. 10, F = G·D⁻¹ with D⁻¹ kept per element)
+and what follows from it:
+
+    F = G·D_r⁻¹,   C = FᵀF,   E = (C − I)/2,   J = det F,   F = R·U.
+
+The polar split is the invertible one of Irving, Teran & Fedkiw (2004, "Invertible finite
+elements for robust simulation of large deformation"): R is always a proper rotation
+(det R = +1) and, for an inverted tetrahedron (det F < 0), U is symmetric with one negative
+eigenvalue, the smallest stretch λ3. The eigenvectors V of U² = C come from cyclic Jacobi
+rotations (Press et al., *Numerical Recipes*, 3rd ed., §11.1) that are applied to the columns of
+F instead of to C itself (one-sided Jacobi, Hestenes 1958): the entries of C that a rotation
+needs are dot products of two columns of F·V, so C is never squared out and small stretches
+keep their relative precision (Demmel & Veselić 1992). On convergence the columns a_k of F·V
+are orthogonal, σ_k = ‖a_k‖ are the singular values of F, w1 = a1/σ1, w2 = a2/σ2 (made
+orthogonal to w1) and w3 = w1 × w2; with V made proper (det V = +1),
+
+    λ1 = σ1 ≥ λ2 = σ2 ≥ |λ3| = σ3,  λ3 < 0 iff det F < 0,   U = V·diag(λ)·Vᵀ,
+    R = W·Vᵀ = F·U⁻¹ (no inverse taken),   directions: row k = column k of V (reference frame).
+
+Flags (uint8 bits): 1 reference degenerate, 2 deformed degenerate, 4 non-finite input,
+16 inverted (det F < 0; fields finite). Degenerate: |det D| ≤ DEGENERATE_TOL · L³ with L the
+longest of the six edges (det D is six times the volume; a regular tetrahedron has
+|det D| = L³/√2). Where bit 1, 2 or 4 is set the float fields are NaN.
+"""
+
+import math
+
+import numpy as np
+from numba import njit, prange
+
+from clothtool import numba_setup  # noqa: F401  (threading layer, before the first kernel)
+from clothtool.vec3 import cross, dot, load, scale, sub
+
+DEGENERATE_TOL = 1e-8
+"""A tetrahedron is degenerate when |det D| ≤ DEGENERATE_TOL·(longest edge)³."""
+
+FLAG_REFERENCE_DEGENERATE = np.uint8(1)
+FLAG_DEFORMED_DEGENERATE = np.uint8(2)
+FLAG_NONFINITE = np.uint8(4)
+FLAG_INVERTED = np.uint8(16)
+NAN_FLAGS = np.uint8(7)
+
+TET_FIELDS = ("F", "C", "U", "R", "strain", "stretch", "directions", "volume_ratio", "flags")
+TET_SHAPES = {"F": (3, 3), "C": (3, 3), "U": (3, 3), "R": (3, 3), "strain": (3, 3),
+              "stretch": (3,), "directions": (3, 3), "volume_ratio": (), "flags": ()}
+
+MAX_SWEEPS = 20  # 3–5 sweeps are typical: convergence is quadratic
+_OFF_TOL = 4.0 * 2.0**-53  # a column pair is orthogonal when |a·b| ≤ this·‖a‖‖b‖
+
+
+@njit(cache=True)
+def edge_matrix(x, tets, k, tol):
+    """Columns d1, d2, d3 of D of tetrahedron k, det D and a status: 0, degenerate
+    (|det D| ≤ tol·L³) or non-finite."""
+    p4 = load(x, tets[k, 3])
+    d1 = sub(load(x, tets[k, 0]), p4)
+    d2 = sub(load(x, tets[k, 1]), p4)
+    d3 = sub(load(x, tets[k, 2]), p4)
+    det = dot(d1, cross(d2, d3))
+    e12, e13, e23 = sub(d1, d2), sub(d1, d3), sub(d2, d3)
+    longest = max(dot(d1, d1), dot(d2, d2), dot(d3, d3), dot(e12, e12), dot(e13, e13),
+                  dot(e23, e23))
+    if not np.isfinite(det + longest):
+        return d1, d2, d3, det, FLAG_NONFINITE
+    if abs(det) <= tol * longest * math.sqrt(longest):
+        return d1, d2, d3, det, FLAG_DEFORMED_DEGENERATE
+    return d1, d2, d3, det, np.uint8(0)
+
+
+@njit(cache=True)
+def _store_rest(k, d1, d2, d3, det, flag, dinv, flags):
+    """D_r⁻¹ of tetrahedron k (rows (d2×d3, d3×d1, d1×d2)/det D) and its flag (a degenerate
+    tetrahedron is bit 0 here)."""
+    if flag == FLAG_DEFORMED_DEGENERATE:
+        flag = FLAG_REFERENCE_DEGENERATE
+    flags[k] = flag
+    if flag != 0:
+        dinv[k] = np.nan
+        return
+    r = 1.0 / det
+    for i, row in enumerate((cross(d2, d3), cross(d3, d1), cross(d1, d2))):
+        dinv[k, i, 0], dinv[k, i, 1], dinv[k, i, 2] = row[0] * r, row[1] * r, row[2] * r
+
+
+def allocate_rest(m):
+    """Empty (D_r⁻¹ (M, 3, 3), flags (M,)) for :func:`rest_from_positions` or the ``next_*``
+    outputs of :func:`tet_fields`."""
+    return np.empty((m, 3, 3)), np.empty(m, np.uint8)
+
+
+@njit(cache=True, parallel=True, nogil=True)
+def _rest_kernel(x, tets, tol, dinv, flags):
+    for k in prange(tets.shape[0]):
+        d1, d2, d3, det, flag = edge_matrix(x, tets, k, tol)
+        _store_rest(k, d1, d2, d3, det, flag, dinv, flags)
+
+
+def rest_from_positions(x, tets, tol=DEGENERATE_TOL):
+    """Rest-state data of every tetrahedron: D_r⁻¹ (M, 3, 3) and flags (M,) uint8 (bit 0
+    degenerate, bit 2 non-finite)."""
+    rest = allocate_rest(tets.shape[0])
+    _rest_kernel(x, tets, tol, *rest)
+    return rest
+
+
+@njit(cache=True, inline="always")
+def _rotate(a, b, va, vb):
+    """One Jacobi rotation of the column pair (a, b) of F·V (and of V) that makes a ⟂ b, i.e.
+    zeroes the entry a·b of C; the smaller angle, tan φ = t (Rutishauser's form).
+    Returns the new columns and whether a rotation was needed."""
+    alpha, beta, gamma = dot(a, a), dot(b, b), dot(a, b)
+    if abs(gamma) <= _OFF_TOL * math.sqrt(alpha * beta):
+        return a, b, va, vb, False
+    zeta = (beta - alpha) / (2.0 * gamma)
+    t = math.copysign(1.0, zeta) / (abs(zeta) + math.sqrt(1.0 + zeta * zeta))  # 0 if ζ² overflows
+    c = 1.0 / math.sqrt(1.0 + t * t)
+    s = c * t
+    return (sub(scale(c, a), scale(s, b)), sub(scale(s, a), scale(-c, b)),
+            sub(scale(c, va), scale(s, vb)), sub(scale(s, va), scale(-c, vb)), True)
+
+
+@njit(cache=True)
+def polar3(f0, f1, f2):
+    """Invertible polar split of F given by its columns f0, f1, f2 (see the module doc).
+    Returns (λ1, λ2, λ3), the columns v1, v2, v3 of V and w1, w2, w3 of W, so that
+    U = V·diag(λ)·Vᵀ and R = W·Vᵀ."""
+    a0, a1, a2 = f0, f1, f2
+    v0, v1, v2 = (1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0)
+    for _ in range(MAX_SWEEPS):
+        a0, a1, v0, v1, r01 = _rotate(a0, a1, v0, v1)
+        a0, a2, v0, v2, r02 = _rotate(a0, a2, v0, v2)
+        a1, a2, v1, v2, r12 = _rotate(a1, a2, v1, v2)
+        if not (r01 or r02 or r12):
+            break
+    s0, s1, s2 = math.sqrt(dot(a0, a0)), math.sqrt(dot(a1, a1)), math.sqrt(dot(a2, a2))
+    if s0 < s1:
+        s0, s1, a0, a1, v0, v1 = s1, s0, a1, a0, v1, v0
+    if s1 < s2:
+        s1, s2, a1, a2, v1, v2 = s2, s1, a2, a1, v2, v1
+    if s0 < s1:
+        s0, s1, a0, a1, v0, v1 = s1, s0, a1, a0, v1, v0
+    if dot(v0, cross(v1, v2)) < 0.0:  # a swap made V improper
+        v2, a2 = scale(-1.0, v2), scale(-1.0, a2)
+    w0 = scale(1.0 / s0, a0)
+    a1 = sub(a1, scale(dot(w0, a1), w0))
+    w1 = scale(1.0 / math.sqrt(dot(a1, a1)), a1)
+    w2 = cross(w0, w1)
+    lam2 = math.copysign(s2, dot(w2, a2))  # the Irving sign: negative iff det F < 0
+    return s0, s1, lam2, v0, v1, v2, w0, w1, w2
+
+
+@njit(cache=True)
+def _column(g1, g2, g3, dinv, k, j):
+    """Column j of F = G·D_r⁻¹: g1·D⁻¹[0, j] + g2·D⁻¹[1, j] + g3·D⁻¹[2, j]."""
+    a, b, c = dinv[k, 0, j], dinv[k, 1, j], dinv[k, 2, j]
+    return (g1[0] * a + g2[0] * b + g3[0] * c, g1[1] * a + g2[1] * b + g3[1] * c,
+            g1[2] * a + g2[2] * b + g3[2] * c)
+
+
+@njit(cache=True, parallel=True, nogil=True)
+def tet_fields(x, tets, dinv, ref_flags, tol,
+               F, C, U, R, strain, stretch, directions, volume_ratio, flags,
+               next_dinv, next_flags):
+    """Fill the per-tetrahedron fields of one pair from deformed positions ``x`` (N, 3).
+
+    Every output is either full size (M, …) or empty (shape[0] == 0), in which case it is
+    neither computed nor written. Outputs may be float32 or float64; all arithmetic is
+    float64. ``next_*``: if full size, also the rest-state data of ``x`` (as
+    :func:`rest_from_positions`), for the next pair of a 'previous' sequence.
+    """
+    want_polar = U.shape[0] or R.shape[0] or stretch.shape[0] or directions.shape[0]
+    for k in prange(tets.shape[0]):
+        g1, g2, g3, det_g, flag = edge_matrix(x, tets, k, tol)
+        if next_flags.shape[0]:
+            _store_rest(k, g1, g2, g3, det_g, flag, next_dinv, next_flags)
+        flag |= ref_flags[k]
+        if flag & NAN_FLAGS:
+            if flags.shape[0]:
+                flags[k] = flag
+            _fill_nan(k, F, C, U, R, strain, stretch, directions, volume_ratio)
+            continue
+        f0 = _column(g1, g2, g3, dinv, k, 0)
+        f1 = _column(g1, g2, g3, dinv, k, 1)
+        f2 = _column(g1, g2, g3, dinv, k, 2)
+        det = dot(f0, cross(f1, f2))
+        if det < 0.0:
+            flag |= FLAG_INVERTED
+        if flags.shape[0]:
+            flags[k] = flag
+        if volume_ratio.shape[0]:
+            volume_ratio[k] = det
+        cols = (f0, f1, f2)
+        if F.shape[0]:
+            for j in range(3):
+                for i in range(3):
+                    F[k, i, j] = cols[j][i]
+        if C.shape[0] or strain.shape[0]:
+            for i in range(3):
+                for j in range(i, 3):
+                    cij = dot(cols[i], cols[j])
+                    if C.shape[0]:
+                        C[k, i, j] = cij
+                        C[k, j, i] = cij
+                    if strain.shape[0]:
+                        e = 0.5 * (cij - 1.0) if i == j else 0.5 * cij
+                        strain[k, i, j] = e
+                        strain[k, j, i] = e
+        if not want_polar:
+            continue
+        l0, l1, l2, v0, v1, v2, w0, w1, w2 = polar3(f0, f1, f2)
+        if stretch.shape[0]:
+            stretch[k, 0], stretch[k, 1], stretch[k, 2] = l0, l1, l2
+        if directions.shape[0]:
+            for j in range(3):
+                directions[k, 0, j], directions[k, 1, j], directions[k, 2, j] = v0[j], v1[j], v2[j]
+        if U.shape[0]:
+            for i in range(3):
+                for j in range(i, 3):
+                    uij = l0 * v0[i] * v0[j] + l1 * v1[i] * v1[j] + l2 * v2[i] * v2[j]
+                    U[k, i, j] = uij
+                    U[k, j, i] = uij
+        if R.shape[0]:
+            for i in range(3):
+                for j in range(3):
+                    R[k, i, j] = w0[i] * v0[j] + w1[i] * v1[j] + w2[i] * v2[j]
+
+
+@njit(cache=True)
+def _fill_nan(k, F, C, U, R, strain, stretch, directions, volume_ratio):
+    nan = np.nan
+    if F.shape[0]:
+        F[k] = nan
+    if C.shape[0]:
+        C[k] = nan
+    if U.shape[0]:
+        U[k] = nan
+    if R.shape[0]:
+        R[k] = nan
+    if strain.shape[0]:
+        strain[k] = nan
+    if stretch.shape[0]:
+        stretch[k] = nan
+    if directions.shape[0]:
+        directions[k] = nan
+    if volume_ratio.shape[0]:
+        volume_ratio[k] = nan
+
+
+def allocate_fields(m, fields, dtype):
+    """Output arrays for :func:`tet_fields`: full size for the requested ``fields``, empty
+    (zero rows) for the others."""
+    out = {name: np.empty((m if name in fields else 0, *shape), dtype)
+           for name, shape in TET_SHAPES.items() if name != "flags"}
+    out["flags"] = np.empty(m if "flags" in fields else 0, np.uint8)
+    return out
+
+
+def analyze_tet_pair(reference, deformed, tets, *, fields=TET_FIELDS, dtype=np.float64,
+                     tol=DEGENERATE_TOL):
+    """Per-tetrahedron fields of one pair, as a dict name → array.
+
+    ``reference``/``deformed``: (N, 3) positions; ``tets``: (M, 4) vertex indices.
+    """
+    tets = np.ascontiguousarray(tets, dtype=np.int64)
+    ref = rest_from_positions(np.ascontiguousarray(reference, dtype=np.float64), tets, tol)
+    out = allocate_fields(len(tets), fields, dtype)
+    tet_fields(np.ascontiguousarray(deformed, dtype=np.float64), tets, *ref, tol,
+               *(out[name] for name in TET_FIELDS), *allocate_rest(0))
+    return {name: out[name] for name in TET_FIELDS if name in fields}
