@@ -45,3 +45,21 @@ def tangent_basis(vertices, faces):
 @pytest.fixture
 def rng():
     return np.random.default_rng(12345)
+
+
+def tet_grid(n, rng=None, jitter=0.2):
+    """(n+1)³ vertices of a unit-spaced cube grid, each cube cut into the six Kuhn
+    tetrahedra sharing its diagonal (positively oriented): (vertices (N,3), tets (6n³, 4)).
+    ``jitter`` moves every vertex by up to that fraction of a spacing (with ``rng``)."""
+    axis = np.arange(n + 1, dtype=np.float64)
+    x = np.stack(np.meshgrid(axis, axis, axis, indexing="ij"), -1).reshape(-1, 3)
+    if rng is not None:
+        x += jitter * (rng.random(x.shape) - 0.5)
+    idx = np.arange((n + 1) ** 3).reshape(n + 1, n + 1, n + 1)
+    c = [idx[i:n + i, j:n + j, k:n + k].ravel() for i in (0, 1) for j in (0, 1) for k in (0, 1)]
+    paths = [(1, 3), (1, 5), (2, 3), (2, 6), (4, 5), (4, 6)]  # corner 0 to corner 7 via a, b
+    tets = np.concatenate([np.stack([c[0], c[a], c[b], c[7]], 1) for a, b in paths])
+    d = x[tets[:, :3]] - x[tets[:, 3:]]
+    negative = np.linalg.det(np.transpose(d, (0, 2, 1))) < 0
+    tets[negative, 0], tets[negative, 1] = tets[negative, 1], tets[negative, 0].copy()
+    return x, tets.astype(np.int64)
