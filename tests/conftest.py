@@ -63,3 +63,47 @@ def tet_grid(n, rng=None, jitter=0.2):
     negative = np.linalg.det(np.transpose(d, (0, 2, 1))) < 0
     tets[negative, 0], tets[negative, 1] = tets[negative, 1], tets[negative, 0].copy()
     return x, tets.astype(np.int64)
+
+
+# tetrahedral mesh files: variant → (extension, meshio format, meshio keywords); "tetgen" by hand
+TET_VARIANTS = {
+    "vtu": (".vtu", "vtu", {}), "vtu_ascii": (".vtu", "vtu", {"binary": False}),
+    "vtk": (".vtk", "vtk", {}), "vtk_ascii": (".vtk", "vtk", {"binary": False}),
+    "msh22": (".msh", "gmsh22", {}), "msh22_ascii": (".msh", "gmsh22", {"binary": False}),
+    "msh41": (".msh", "gmsh", {}), "msh41_ascii": (".msh", "gmsh", {"binary": False}),
+    "tetgen": (".node", None, {}),
+}
+
+
+def write_tetgen(node_path, x, tets=None, base=0, ele_path=None):
+    """A TetGen .node file (and, with ``tets``, its .ele: same name unless ``ele_path``)."""
+    lines = [f"# {len(x)} points", f"{len(x)} 3 0 0"]
+    lines += [f"{i + base} {p[0]!r} {p[1]!r} {p[2]!r}" for i, p in enumerate(x.tolist())]
+    node_path.write_text("\n".join(lines) + "\n")
+    if tets is not None:
+        ele_path = ele_path or node_path.with_suffix(".ele")
+        rows = [f"{len(tets)} 4 0"] + [f"{i + base} " + " ".join(str(v + base) for v in t)
+                                      for i, t in enumerate(tets.tolist())]
+        ele_path.write_text("\n".join(rows) + "  # end\n")
+
+
+def write_tet_file(path_stem, x, tets, variant, triangles=None):
+    """Write one frame in ``variant`` (a key of TET_VARIANTS) as ``path_stem`` + extension;
+    ``triangles`` (K, 3): extra cells that readers must ignore (not for msh41/tetgen).
+    Returns the path."""
+    import meshio
+
+    ext, fmt, kw = TET_VARIANTS[variant]
+    path = path_stem.with_name(path_stem.name + ext)
+    if fmt is None:
+        write_tetgen(path, x, tets)
+        return path
+    cells = [("tetra", tets)]
+    cell_data = {}
+    if triangles is not None:
+        cells = [("triangle", triangles), *cells]
+    if fmt.startswith("gmsh"):
+        cell_data = {key: [np.ones(len(c), np.int32) for _, c in cells]
+                     for key in ("gmsh:physical", "gmsh:geometrical")}
+    meshio.write(path, meshio.Mesh(x, cells, cell_data=cell_data), file_format=fmt, **kw)
+    return path

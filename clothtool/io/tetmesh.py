@@ -1,0 +1,229 @@
+"""Reading tetrahedral meshes: VTK XML unstructured grids (.vtu), legacy VTK unstructured
+grids (.vtk) and Gmsh (.msh, formats 2.2 and 4.1) through meshio, TetGen (.node + .ele) with
+a reader of ours (meshio's needs a .ele of the same name beside each .node; a sequence of
+.node frames often shares one .ele).
+
+Only ``tetra`` cells are kept, in file order; other cells (triangles, lines, quadratic
+tetrahedra, …) are counted and ignored. Every failure is an :class:`InputError` naming the
+file, whatever the underlying reader raised.
+"""
+
+import contextlib
+import io
+import os
+import re
+from dataclasses import dataclass
+
+import numpy as np
+
+from clothtool.errors import InputError
+
+FORMATS = {".vtu": ("vtu", "VTK XML unstructured grid"),
+           ".vtk": ("vtk", "legacy VTK file"),
+           ".msh": ("gmsh", "Gmsh mesh"),
+           ".node": ("tetgen", "TetGen .node file")}
+TET_EXTENSIONS = tuple(FORMATS)
+
+
+@dataclass
+class TetMesh:
+    """One frame: ``vertices`` (N, 3) float64, ``tets`` (M, 4) int64, and ``other_cells``,
+    the number of cells of other types that were ignored; ``ele`` the TetGen .ele read."""
+
+    vertices: np.ndarray
+    tets: np.ndarray
+    other_cells: int = 0
+    ele: str | None = None
+
+
+def is_tet_path(path):
+    return os.path.splitext(os.fspath(path))[1].lower() in FORMATS
+
+
+def read_tet_mesh(path, reuse=None):
+    """Read one tetrahedral mesh file. ``reuse``: a :class:`TetMesh` read before (the first
+    frame); a TetGen frame that shares its .ele file does not parse it again."""
+    path = os.fspath(path)
+    ext = os.path.splitext(path)[1].lower()
+    if ext not in FORMATS:
+        raise InputError(f"{path}: not a tetrahedral mesh file (expected "
+                         f"{', '.join(TET_EXTENSIONS)})")
+    if os.path.isdir(path):
+        raise InputError(f"{path}: is a folder")
+    if not os.path.isfile(path):
+        raise InputError(f"{path}: no such file")
+    if ext == ".node":
+        return _read_tetgen(path, reuse)
+    return _read_meshio(path, *FORMATS[ext])
+
+
+def _reason(exc):
+    text = " ".join(str(exc).split())
+    if isinstance(exc, MemoryError):
+        return "out of memory (is a count in the file wrong?)"
+    return (f"{type(exc).__name__}: {text}" if text else type(exc).__name__)[:300]
+
+
+def _read_meshio(path, fmt, label):
+    import importlib
+
+    # The format's own reader: meshio.read() prints and calls sys.exit(1) on a ReadError.
+    reader = importlib.import_module(f"meshio.{fmt}").read
+    try:
+        with contextlib.redirect_stderr(io.StringIO()):  # meshio prints warnings with rich
+            mesh = reader(path)
+        points = np.asarray(mesh.points, dtype=np.float64)
+        blocks = [(block.type, np.asarray(block.data)) for block in mesh.cells]
+    except Exception as exc:  # meshio raises many types on broken files; all mean "bad input"
+        raise InputError(f"{path}: cannot read as {label}: {_reason(exc)}") from None
+    if points.ndim != 2 or points.shape[1] != 3:
+        raise InputError(f"{path}: points of shape {points.shape}; 3D points are needed")
+    tets = [data for kind, data in blocks if kind == "tetra"]
+    other = {}
+    for kind, data in blocks:
+        if kind != "tetra":
+            other[kind] = other.get(kind, 0) + len(data)
+    if not tets or not sum(len(t) for t in tets):
+        found = ", ".join(f"{n} {kind}" for kind, n in other.items()) or "none"
+        raise InputError(f"{path}: no tetrahedra in the file (cells: {found})")
+    tets = np.concatenate(tets).astype(np.int64, copy=False).reshape(-1, 4)
+    return TetMesh(points, _checked_indices(path, tets, len(points)), sum(other.values()))
+
+
+def _checked_indices(path, tets, n):
+    if tets.size and (tets.min() < 0 or tets.max() >= n):
+        bad = tets.min() if tets.min() < 0 else tets.max()
+        raise InputError(f"{path}: tetrahedron vertex index {bad} is outside 0..{n - 1}")
+    return np.ascontiguousarray(tets)
+
+
+# ---------------------------------------------------------------- TetGen
+
+_COMMENT = re.compile(rb"#[^\n]*")
+
+
+def _numbers(path, data, what):
+    """Header ints and body tokens of a TetGen file (comments stripped)."""
+    tokens = _COMMENT.sub(b"", data).split()
+    if not tokens:
+        raise InputError(f"{path}: empty {what} file")
+    return tokens
+
+
+def _ints(path, tokens, count, what):
+    try:
+        return [int(t) for t in tokens[:count]]
+    except ValueError:
+        raise InputError(f"{path}: {what} header is not {count} integers") from None
+
+
+def _table(path, tokens, rows, cols, dtype, what):
+    if len(tokens) < rows * cols:
+        raise InputError(f"{path}: {what} has {len(tokens)} numbers, the header announces "
+                         f"{rows} rows of {cols}")
+    try:
+        values = np.array(tokens[:rows * cols], dtype=np.float64).reshape(rows, cols)
+    except ValueError:
+        raise InputError(f"{path}: {what} holds something that is not a number") from None
+    if dtype is not np.float64:
+        if not np.isfinite(values).all() or (values != np.round(values)).any():
+            raise InputError(f"{path}: {what} holds a non-integer index")
+        values = values.astype(dtype)
+    return values
+
+
+def _read_node(path):
+    with open(path, "rb") as fh:
+        tokens = _numbers(path, fh.read(), ".node")
+    if len(tokens) < 4:
+        raise InputError(f"{path}: .node header needs 4 numbers (points, dimension, "
+                         "attributes, boundary markers)")
+    n, dim, attrs, markers = _ints(path, tokens, 4, ".node")
+    if dim != 3 or n < 0 or attrs < 0 or markers not in (0, 1):
+        raise InputError(f"{path}: .node header '{n} {dim} {attrs} {markers}' is not "
+                         "N 3 ATTRIBUTES 0|1")
+    table = _table(path, tokens[4:], n, 4 + attrs + markers, np.float64, "the point list")
+    numbers = table[:, 0]
+    base = int(numbers[0]) if n else 0
+    if not np.array_equal(numbers, base + np.arange(n)) or base not in (0, 1):
+        raise InputError(f"{path}: points are not numbered consecutively from 0 or 1")
+    return np.ascontiguousarray(table[:, 1:4]), base
+
+
+def _read_ele(path, base, n):
+    if not os.path.isfile(path):
+        raise InputError(f"{path}: no such file")
+    with open(path, "rb") as fh:
+        tokens = _numbers(path, fh.read(), ".ele")
+    if len(tokens) < 3:
+        raise InputError(f"{path}: .ele header needs 3 numbers (tetrahedra, nodes per "
+                         "tetrahedron, region attribute)")
+    m, per, region = _ints(path, tokens, 3, ".ele")
+    if m < 0 or per not in (4, 10) or region not in (0, 1):
+        raise InputError(f"{path}: .ele header '{m} {per} {region}' is not M 4|10 0|1")
+    if m == 0:
+        raise InputError(f"{path}: no tetrahedra in the file")
+    table = _table(path, tokens[3:], m, 1 + per + region, np.int64, "the tetrahedron list")
+    return _checked_indices(path, np.ascontiguousarray(table[:, 1:5]) - base, n)  # corners first
+
+
+def ele_path(node_path):
+    """The .ele of a .node frame: the one of the same name, else the only .ele in its folder."""
+    own = os.path.splitext(node_path)[0] + ".ele"
+    if os.path.isfile(own):
+        return own
+    folder = os.path.dirname(node_path) or "."
+    found = sorted(f for f in os.listdir(folder) if f.lower().endswith(".ele"))
+    if len(found) == 1:
+        return os.path.join(os.path.dirname(node_path), found[0])
+    if not found:
+        raise InputError(f"{node_path}: no {os.path.basename(own)} and no other .ele file "
+                         "beside it")
+    raise InputError(f"{node_path}: no {os.path.basename(own)}, and several .ele files beside "
+                     f"it ({', '.join(found[:3])}{', …' if len(found) > 3 else ''})")
+
+
+def _read_tetgen(path, reuse):
+    vertices, base = _read_node(path)
+    ele = ele_path(path)
+    if reuse is not None and reuse.ele is not None and os.path.samefile(reuse.ele, ele):
+        tets = reuse.tets
+    else:
+        tets = _read_ele(ele, base, len(vertices))
+    return TetMesh(vertices, tets, 0, ele)
+
+
+class TetFrameReader:
+    """Reads the frames of a tetrahedral sequence against the first: the same vertex count
+    and the same tetrahedra (InputError naming both files otherwise)."""
+
+    def __init__(self, paths):
+        self.paths = list(paths)
+        self.first = read_tet_mesh(self.paths[0])
+
+    @property
+    def tets(self):
+        return self.first.tets
+
+    @property
+    def n_vertices(self):
+        return len(self.first.vertices)
+
+    def mesh(self, i):
+        if i == 0:
+            return self.first
+        return self.check_same_topology(read_tet_mesh(self.paths[i], reuse=self.first),
+                                        self.paths[i])
+
+    def positions(self, i):
+        """(N, 3) float64 positions of frame ``i``."""
+        return self.mesh(i).vertices
+
+    def check_same_topology(self, mesh, path):
+        first = self.paths[0]
+        if len(mesh.vertices) != self.n_vertices:
+            raise InputError(f"{path}: {len(mesh.vertices)} vertices, but {first} has "
+                             f"{self.n_vertices}; frames must correspond vertex by vertex")
+        if mesh.tets is not self.first.tets and not np.array_equal(mesh.tets, self.first.tets):
+            raise InputError(f"{path}: tetrahedra differ from those of {first}")
+        return mesh
