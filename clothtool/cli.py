@@ -116,6 +116,8 @@ Examples:
       only pairs 100..199; join the parts with `clothtool merge`
   clothtool analyze frames/ -o out.h5 --kabsch --fields stretch,angle,residual,dihedral_change
       with the 3D variant: per-vertex ring rotation, residual and bending
+  clothtool analyze volume/ -o out.h5 --fields stretch,volume_ratio,flags
+      a tetrahedral sequence (.vtu, .vtk, .msh or TetGen .node frames): /tet/... fields
 
 \b
 Fields (--fields, comma separated; default all):
@@ -123,6 +125,7 @@ Fields (--fields, comma separated; default all):
   with --kabsch also: rotation angle residual (per vertex, /vertex/...),
   F3 R3 U3 stretch3 directions3 (per face), dihedral_change (per edge, /edge/...);
   flags then also selects /vertex/flags and /edge/flags
+  tetrahedra: F C U R strain stretch directions volume_ratio flags (3×3, λ1 ≥ λ2 ≥ λ3)
 Read the result with h5py:  h5py.File('out.h5')['face/stretch'][k]  (pair k)
 Open out.xdmf (written beside out.h5) in ParaView for the deformed mesh over time.
 
@@ -135,7 +138,7 @@ Open out.xdmf (written beside out.h5) in ParaView for the deformed mesh over tim
               help="HDF5 file to write (written under a temporary name, renamed when complete).")
 @click.option("--reference", default="previous", show_default=True, metavar="previous|first|uv|PATH",
               help="Rest state of each pair: the previous frame, the first frame, the texture "
-                   "coordinates, or a PLY mesh.")
+                   "coordinates, or a mesh file (PLY, or a tetrahedral mesh for tetrahedra).")
 @click.option("--uv-scale", default=1.0, show_default=True, type=float,
               help="Metres per uv unit for --reference uv.")
 @click.option("--fields", default="all", show_default=True, metavar="NAMES",
@@ -155,13 +158,18 @@ Open out.xdmf (written beside out.h5) in ParaView for the deformed mesh over tim
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary.")
 def analyze(inputs, output, reference, uv_scale, fields, dtype, compression, vertex_average,
             pair_slice, kabsch, quiet):
-    """Per-triangle deformation of a PLY sequence, written to HDF5.
+    """Per-triangle (or per-tetrahedron) deformation of a mesh sequence, written to HDF5.
 
     FRAMES is a folder of .ply files, a glob, or a list of files; they are
     taken in natural order (f2.ply before f10.ply) and analysed in pairs. For
     each triangle: the deformation gradient F in the triangle's tangent frame,
     C = FᵀF, the polar split F = R·U, principal stretches and directions, the
     area ratio J and the Green strain E = (C − I)/2.
+
+    Tetrahedral frames (.vtu, .vtk, .msh, or TetGen .node with a shared or own
+    .ele; a folder without .ply files is searched for these) give the same
+    fields per tetrahedron in 3D, with J = det F the volume ratio and the
+    invertible polar split (λ3 < 0 for an inverted tetrahedron).
     """
     from clothtool.analysis.sequence import analyze_sequence
 

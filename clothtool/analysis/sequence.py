@@ -20,7 +20,7 @@ from clothtool.analysis.deformation2d import (DEGENERATE_TOL, FIELDS, allocate_f
                                               reference_from_positions,
                                               reference_from_uv)
 from clothtool.errors import InputError
-from clothtool.io.frames import FrameReader, discover_frames
+from clothtool.io.frames import FrameReader, discover_frames, is_tet_path
 from clothtool.io.h5 import (AtomicH5, PairWriter, check_not_an_input, check_output_path,
                               create_pair_dataset, parse_compression)
 from clothtool.results.extras import NEEDED, PairExtras
@@ -80,16 +80,24 @@ class AnalysisSummary:
     stretch_min: float = float("nan")
     flagged: int = 0
     extra: dict = field(default_factory=dict)
+    tets: int = 0  # a tetrahedral sequence: its tetrahedra (and triangles = 0)
+    ignored_cells: int = 0  # cells other than tetrahedra in its first frame
 
     def describe(self):
+        elements = (f"{self.tets} tetrahedra" if self.tets else f"{self.triangles} triangles")
         lines = [f"wrote {self.output}: {self.pairs} pairs of {self.frames} frames, "
-                 f"{self.triangles} triangles, {self.vertices} vertices "
+                 f"{elements}, {self.vertices} vertices "
                  f"(reference: {self.reference}) in {self.seconds:.2f} s",
                  f"  fields: {', '.join(self.fields)}"]
+        if self.ignored_cells:
+            lines.append(f"  ignored: {self.ignored_cells} cells that are not tetrahedra")
         if np.isfinite(self.stretch_max):
             lines.append(f"  principal stretch: largest λ1 {self.stretch_max:.4f}, "
-                         f"smallest λ2 {self.stretch_min:.4f}")
-        if "flags" in self.fields:
+                         f"smallest λ{3 if self.tets else 2} {self.stretch_min:.4f}")
+        if "flags" in self.fields and self.tets:
+            lines.append(f"  flagged tetrahedron-pairs (degenerate, non-finite or inverted): "
+                         f"{self.flagged}")
+        elif "flags" in self.fields:
             lines.append(f"  flagged triangle-pairs (degenerate, non-finite or flipped): {self.flagged}")
         if "angle_max" in self.extra:
             lines.append(f"  3D variant: largest vertex rotation {self.extra['angle_max']:.4f} rad")
@@ -163,7 +171,9 @@ def plan_pairs(n_frames, reference):
 def analyze_sequence(inputs, output, *, reference="previous", uv_scale=1.0, fields="all",
                      dtype="float32", compression="none", kabsch=False, progress=False,
                      command=None, pairs=None, vertex_average=None):
-    """Analyse a PLY sequence and write the per-triangle fields to ``output`` (HDF5, spec §4).
+    """Analyse a PLY sequence and write the per-triangle fields to ``output`` (HDF5, spec §4),
+    or a tetrahedral sequence (.vtu, .vtk, .msh, TetGen .node) and its per-tetrahedron fields
+    (:mod:`clothtool.analysis.tet_sequence`).
 
     ``inputs``: a folder, a glob, a file or a list of them (natural order).
     ``reference``: 'previous' (pairs (i, i+1)), 'first' (pairs (0, i)), 'uv' (the
@@ -181,13 +191,20 @@ def analyze_sequence(inputs, output, *, reference="previous", uv_scale=1.0, fiel
     on bad input, before writing anything.
     """
     started = time.perf_counter()
-    fields = parse_fields(fields, kabsch)
     store = parse_dtype(dtype)
     h5_compression = parse_compression(compression)
-    averaged = parse_vertex_average(vertex_average)
     check_output_path(output)
     xdmf = xdmf_path(output)
     paths = discover_frames(inputs)
+    if is_tet_path(paths[0]):
+        from clothtool.analysis.tet_sequence import analyze_tets
+
+        return analyze_tets(paths, output, xdmf, reference=reference, fields=fields, store=store,
+                            compression=h5_compression, kabsch=kabsch, progress=progress,
+                            command=command, pairs=pairs, vertex_average=vertex_average,
+                            started=started)
+    fields = parse_fields(fields, kabsch)
+    averaged = parse_vertex_average(vertex_average)
     check_not_an_input(output, paths if reference in REFERENCE_MODES else [*paths, reference])
     internal = reference in ("previous", "first")
     if internal and len(paths) < 2:
@@ -225,7 +242,7 @@ def analyze_sequence(inputs, output, *, reference="previous", uv_scale=1.0, fiel
         if variant:
             datasets.update(variant.create_datasets(h5, len(pairs), store, h5_compression))
         with PairWriter({**datasets, **extras.datasets}, make_buffers) as writer, \
-                _kernel_threads_beside_writer():
+                kernel_threads_beside_writer():
             _stream_pairs(pairs, reader, rest, writer, summary, fields, progress, extras, variant)
         extras.close()
         atomic.add_sidecar(xdmf, xdmf_text(h5, os.path.basename(output)))  # renamed with it
@@ -234,7 +251,7 @@ def analyze_sequence(inputs, output, *, reference="previous", uv_scale=1.0, fiel
 
 
 @contextlib.contextmanager
-def _kernel_threads_beside_writer():
+def kernel_threads_beside_writer():
     """Leave one core to the HDF5 writer thread while the kernels run: on 2 cores the
     100k-triangle benchmark runs in 1.55 s with one kernel thread and 1.7–1.9 s with two."""
     import numba
@@ -279,15 +296,7 @@ def _stream_pairs(pairs, reader, rest, writer, summary, fields, progress, extras
 
 
 def _write_header(h5, paths, pairs, rest, reader, reference, uv_scale, command, store):
-    import h5py
-
-    h5.attrs["clothtool_version"] = __version__
-    h5.attrs["reference"] = reference
-    h5.attrs["command"] = command or "clothtool.analyze_sequence"
-    h5.attrs["created"] = datetime.datetime.now(datetime.timezone.utc).astimezone().isoformat(
-        timespec="seconds")
-    h5.attrs["degenerate_tol"] = DEGENERATE_TOL
-    h5.attrs["dtype"] = store.name
+    write_common_header(h5, paths, pairs, reference, command, store)
     if reference == "uv":
         h5.attrs["uv_scale"] = float(uv_scale)
     mesh = h5.create_group("mesh")
@@ -296,6 +305,19 @@ def _write_header(h5, paths, pairs, rest, reader, reference, uv_scale, command, 
     mesh.create_dataset("vertices", data=rest.vertices())
     if reference == "uv":
         mesh.create_dataset("uv", data=rest.external[1])
+
+
+def write_common_header(h5, paths, pairs, reference, command, store, tol=DEGENERATE_TOL):
+    """Root attributes, ``/frames`` and ``/pairs`` of a result (triangles or tetrahedra)."""
+    import h5py
+
+    h5.attrs["clothtool_version"] = __version__
+    h5.attrs["reference"] = reference
+    h5.attrs["command"] = command or "clothtool.analyze_sequence"
+    h5.attrs["created"] = datetime.datetime.now(datetime.timezone.utc).astimezone().isoformat(
+        timespec="seconds")
+    h5.attrs["degenerate_tol"] = tol
+    h5.attrs["dtype"] = store.name
     h5.create_dataset("frames", data=np.array(paths, dtype=object), dtype=h5py.string_dtype())
     h5.create_dataset("pairs", data=pairs)
 

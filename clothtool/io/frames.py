@@ -9,6 +9,12 @@ import numpy as np
 from clothtool.errors import InputError
 
 _DIGITS = re.compile(r"(\d+)")
+TET_EXTENSIONS = (".vtu", ".vtk", ".msh", ".node")  # as clothtool.io.tetmesh (not imported: start-up)
+
+
+def is_tet_path(path):
+    """Whether ``path`` names a tetrahedral mesh file (by its extension)."""
+    return os.path.splitext(os.fspath(path))[1].lower() in TET_EXTENSIONS
 
 
 def natural_key(path):
@@ -18,21 +24,32 @@ def natural_key(path):
 
 
 def discover_frames(inputs):
-    """Resolve ``inputs`` (a path, a glob or a list of them) to an ordered list of PLY files.
+    """Resolve ``inputs`` (a path, a glob or a list of them) to an ordered list of frame files.
 
-    A folder contributes its ``*.ply`` files (case-insensitive), a glob its matches; each
-    folder or glob is sorted naturally, explicit files keep the order given.
+    A folder contributes its ``*.ply`` files (case-insensitive) or, if it has none, the
+    files of the one tetrahedral mesh format it holds (``.vtu``, ``.vtk``, ``.msh`` or TetGen
+    ``.node``); a glob its matches; each folder or glob is sorted naturally, explicit files
+    keep the order given.
     """
     if isinstance(inputs, (str, os.PathLike)):
         inputs = [inputs]
     frames = []
     for item in map(os.fspath, inputs):
         if os.path.isdir(item):
-            found = [os.path.join(item, f) for f in os.listdir(item)
-                     if f.lower().endswith(".ply") and os.path.isfile(os.path.join(item, f))]
+            files = [f for f in os.listdir(item) if os.path.isfile(os.path.join(item, f))]
+            found = [f for f in files if f.lower().endswith(".ply")]
             if not found:
-                raise InputError(f"{item}: folder contains no .ply files")
-            frames.extend(sorted(found, key=natural_key))
+                kinds = sorted({os.path.splitext(f)[1].lower() for f in files}
+                               & set(TET_EXTENSIONS))
+                if len(kinds) > 1:
+                    raise InputError(f"{item}: folder holds several mesh formats "
+                                     f"({', '.join(kinds)}); pass a glob such as "
+                                     f"'{os.path.join(item, '*' + kinds[0])}'")
+                found = [f for f in files if kinds and f.lower().endswith(kinds[0])]
+            if not found:
+                raise InputError(f"{item}: folder contains no .ply files "
+                                 f"(nor {', '.join(TET_EXTENSIONS)} tetrahedral meshes)")
+            frames.extend(sorted((os.path.join(item, f) for f in found), key=natural_key))
         elif os.path.isfile(item):
             frames.append(item)
         elif glob.has_magic(item):

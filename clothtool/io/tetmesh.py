@@ -17,12 +17,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from clothtool.errors import InputError
+from clothtool.io.frames import TET_EXTENSIONS
 
-FORMATS = {".vtu": ("vtu", "VTK XML unstructured grid"),
-           ".vtk": ("vtk", "legacy VTK file"),
-           ".msh": ("gmsh", "Gmsh mesh"),
-           ".node": ("tetgen", "TetGen .node file")}
-TET_EXTENSIONS = tuple(FORMATS)
+FORMATS = dict(zip(TET_EXTENSIONS, (("vtu", "VTK XML unstructured grid"),
+                                     ("vtk", "legacy VTK file"), ("gmsh", "Gmsh mesh"),
+                                     ("tetgen", "TetGen .node file"))))
 
 
 @dataclass
@@ -34,10 +33,6 @@ class TetMesh:
     tets: np.ndarray
     other_cells: int = 0
     ele: str | None = None
-
-
-def is_tet_path(path):
-    return os.path.splitext(os.fspath(path))[1].lower() in FORMATS
 
 
 def read_tet_mesh(path, reuse=None):
@@ -227,3 +222,22 @@ class TetFrameReader:
         if mesh.tets is not self.first.tets and not np.array_equal(mesh.tets, self.first.tets):
             raise InputError(f"{path}: tetrahedra differ from those of {first}")
         return mesh
+
+
+def boundary_faces(x, tets):
+    """The boundary surface of a tetrahedral mesh: the triangles that belong to one
+    tetrahedron only, oriented with their normal away from it (by the positions ``x``).
+    Returns (faces (K, 3) int64, owner (K,): the tetrahedron of each)."""
+    tets = np.asarray(tets, np.int64)
+    opposite = np.array([[1, 2, 3], [0, 3, 2], [0, 1, 3], [0, 2, 1]])  # face opposite corner i
+    faces = tets[:, opposite].reshape(-1, 3)
+    owner = np.repeat(np.arange(len(tets)), 4)
+    apex = tets.reshape(-1)
+    _, first, counts = np.unique(np.sort(faces, axis=1), axis=0, return_index=True,
+                                 return_counts=True)
+    keep = np.sort(first[counts == 1])
+    faces, owner, apex = faces[keep], owner[keep], apex[keep]
+    a, b, c = x[faces[:, 0]], x[faces[:, 1]], x[faces[:, 2]]
+    inward = np.einsum("ij,ij->i", np.cross(b - a, c - a), x[apex] - a) > 0
+    faces[inward] = faces[inward][:, [0, 2, 1]]
+    return faces, owner

@@ -1,8 +1,8 @@
 """``clothtool merge``: join results computed in slices (``analyze --pairs START:STOP``) into one
 result equal, dataset by dataset, to a single run over those pairs.
 
-Per-pair datasets are ``/pairs`` and, in the groups ``face``, ``vertex``, ``edge`` and
-``summary``, every dataset whose first axis is the part's pair count; they are concatenated in
+Per-pair datasets are ``/pairs`` and, in the groups ``face``, ``tet``, ``vertex``, ``edge``
+and ``summary``, every dataset whose first axis is the part's pair count; they are concatenated in
 pair order. ``/frame_vertices`` takes each frame from a part that read it. Everything else
 (``/mesh``, ``/frames``, …) must be equal in all parts and is copied once. Parts may be given
 in any order but must be slices of the same analysis (same frames, mesh, reference, fields,
@@ -21,7 +21,7 @@ import numpy as np
 from clothtool.errors import InputError
 from clothtool.results.info import open_result
 
-PAIR_GROUPS = ("face", "vertex", "edge", "summary")
+PAIR_GROUPS = ("face", "tet", "vertex", "edge", "summary")
 VARYING_ATTRS = ("command", "created", "pair_offset", "merged_commands")  # differ between parts
 BLOCK_BYTES = 64 << 20  # rows copied at a time
 

@@ -13,6 +13,10 @@ attribute (:data:`COLUMNS`):
   sheet 20 edges wide) out of both, so a rigid motion counts as neither.
 - ``flagged``: triangles with any flag bit; ``reference_degenerate``,
   ``deformed_degenerate``, ``nonfinite``, ``uv_flipped``: triangles with each bit (spec §2).
+
+A tetrahedral result (:data:`TET_COLUMNS`) has the same columns over its tetrahedra with
+λ1 ≥ λ2 ≥ λ3 (``lambda3_p*`` added), J the volume ratio, ``compressed`` counting λ3 < 1 − TOL,
+and the flag count ``inverted`` (det F < 0) in place of ``uv_flipped``.
 """
 
 import numpy as np
@@ -27,29 +31,37 @@ COLUMNS = ("pair", "reference", "deformed",
            *(f"{q}_p{p}" for q in ("lambda1", "lambda2", "J") for p in PERCENTILES),
            "compressed", "stretched", "flagged", *(name for name, _ in FLAG_BITS))
 INT_COLUMNS = {"pair", "reference", "deformed", "flagged", *(name for name, _ in FLAG_BITS)}
+TET_FLAG_BITS = (("reference_degenerate", 1), ("deformed_degenerate", 2), ("nonfinite", 4),
+                 ("inverted", 16))
+TET_COLUMNS = ("pair", "reference", "deformed",
+               *(f"{q}_p{p}" for q in ("lambda1", "lambda2", "lambda3", "J") for p in PERCENTILES),
+               "compressed", "stretched", "flagged", *(name for name, _ in TET_FLAG_BITS))
+TET_INT_COLUMNS = {"pair", "reference", "deformed", "flagged", *(n for n, _ in TET_FLAG_BITS)}
 
 
-def pair_summary(stretch, area_ratio, flags):
+def pair_summary(stretch, area_ratio, flags, flag_bits=FLAG_BITS):
     """The float and count columns of one pair (everything but pair/reference/deformed)
-    from its (M, 2) stretches, (M,) area ratios and (M,) flags."""
+    from its (M, k) stretches (k = 2, or 3 for tetrahedra), (M,) area (volume) ratios and
+    (M,) flags."""
     stretch, area_ratio = np.asarray(stretch), np.asarray(area_ratio)
     if np.isfinite(stretch.sum()):  # the common case, checked with one cheap pass: views, no copies
-        l1, l2, j = stretch[:, 0], stretch[:, 1], area_ratio
+        lam, j = [stretch[:, k] for k in range(stretch.shape[1])], area_ratio
     else:
         valid = np.isfinite(stretch).all(axis=1)
-        l1, l2, j = stretch[valid, 0], stretch[valid, 1], area_ratio[valid]
+        lam, j = [stretch[valid, k] for k in range(stretch.shape[1])], area_ratio[valid]
     from clothtool.results.percentiles import percentiles  # numba: not for `clothtool info`
 
     row = {}
     qs = np.array(PERCENTILES, np.float64)
-    for name, q in (("lambda1", l1), ("lambda2", l2), ("J", j)):
+    named = [(f"lambda{k + 1}", q) for k, q in enumerate(lam)] + [("J", j)]
+    for name, q in named:
         values = percentiles(np.ascontiguousarray(q), qs)  # = np.percentile, 4× faster
         row.update({f"{name}_p{p}": float(v) for p, v in zip(PERCENTILES, values)})
-    n = len(l1)  # unflagged triangles
-    row["compressed"] = float(np.count_nonzero(l2 < 1 - TOL)) / n if n else np.nan
-    row["stretched"] = float(np.count_nonzero(l1 > 1 + TOL)) / n if n else np.nan
+    n = len(j)  # unflagged elements
+    row["compressed"] = float(np.count_nonzero(lam[-1] < 1 - TOL)) / n if n else np.nan
+    row["stretched"] = float(np.count_nonzero(lam[0] > 1 + TOL)) / n if n else np.nan
     row["flagged"] = int(np.count_nonzero(flags))
-    for name, bit in FLAG_BITS:
+    for name, bit in flag_bits:
         row[name] = int(np.count_nonzero(np.asarray(flags) & bit))
     return row
 
@@ -57,25 +69,28 @@ def pair_summary(stretch, area_ratio, flags):
 class SummaryWriter:
     """Creates ``/summary`` in an open HDF5 file and fills it one pair at a time."""
 
-    def __init__(self, h5, pairs, offset):
+    def __init__(self, h5, pairs, offset, tets=False):
+        self.columns = TET_COLUMNS if tets else COLUMNS
+        self.flag_bits = TET_FLAG_BITS if tets else FLAG_BITS
+        ints = TET_INT_COLUMNS if tets else INT_COLUMNS
         group = h5.create_group("summary")
-        group.attrs["columns"] = list(COLUMNS)
+        group.attrs["columns"] = list(self.columns)
         group.attrs["percentiles"] = list(PERCENTILES)
         group.attrs["tolerance"] = TOL
         n = len(pairs)
-        self.data = {c: np.zeros(n, np.int64 if c in INT_COLUMNS else np.float64) for c in COLUMNS}
+        self.data = {c: np.zeros(n, np.int64 if c in ints else np.float64) for c in self.columns}
         self.data["pair"][:] = offset + np.arange(n)
         self.data["reference"][:] = pairs[:, 0]
         self.data["deformed"][:] = pairs[:, 1]
         self.group = group
 
     def add(self, p, stretch, area_ratio, flags):
-        for name, value in pair_summary(stretch, area_ratio, flags).items():
+        for name, value in pair_summary(stretch, area_ratio, flags, self.flag_bits).items():
             self.data[name][p] = value
 
     def close(self):
         """Write the columns (P values each: small, kept in memory until the end)."""
-        for name in COLUMNS:
+        for name in self.columns:
             self.group.create_dataset(name, data=self.data[name])
 
 

@@ -2,10 +2,11 @@
 
 ``out.xdmf`` next to ``out.h5`` holds only XML; the numbers stay in the HDF5 file, which it
 names without a folder (keep the two together). One grid per pair, at time = the pair's
-deformed frame index: triangles ``/mesh/faces``, points ``/frame_vertices[d]`` (the deformed
-frame d), and every ``/face/<name>`` (cell data) and ``/vertex/<name>`` (point data) of that
-pair. A field of k components per item is one array with k components (2×2 tensors:
-xx, xy, yx, yy, row-major; 3-vectors as Vector, 3×3 as Tensor). Each pair is a HyperSlab of
+deformed frame index: triangles ``/mesh/faces`` (or tetrahedra ``/mesh/tets``), points
+``/frame_vertices[d]`` (the deformed frame d), and every ``/face/<name>`` or ``/tet/<name>``
+(cell data) and ``/vertex/<name>`` (point data) of that pair. A field of k components per
+item is one array with k components (2×2 tensors: xx, xy, yx, yy, row-major; 3-vectors as
+Vector, 3×3 as Tensor). Each pair is a HyperSlab of
 its dataset, so nothing is copied; the reader is VTK's vtkXdmfReader ("XDMF Reader" in
 ParaView).
 """
@@ -18,7 +19,7 @@ import numpy as np
 from clothtool.errors import InputError
 from clothtool.io.atomic import atomic_path
 
-CENTERS = (("face", "Cell"), ("vertex", "Node"))
+CENTERS = (("face", "Cell"), ("tet", "Cell"), ("vertex", "Node"))
 _NUMBER_TYPES = {"f": "Float", "i": "Int", "u": "UInt"}
 
 
@@ -100,16 +101,18 @@ def xdmf_text(h5, h5_name):
     if "frame_vertices" not in h5:
         raise InputError(f"{h5.filename}: no /frame_vertices; this result predates XDMF "
                          "support, analyse the sequence again")
-    faces, positions, pairs = h5["mesh/faces"], h5["frame_vertices"], h5["pairs"][:]
+    kind, cells = ("Tetrahedron", "tets") if "tets" in h5["mesh"] else ("Triangle", "faces")
+    faces, positions, pairs = h5[f"mesh/{cells}"], h5["frame_vertices"], h5["pairs"][:]
     n_pairs, m, n = len(pairs), faces.shape[0], positions.shape[1]
-    counts = {"face": m, "vertex": n}
+    counts = {"face": m, "tet": m, "vertex": n}
     fields = [(h5[group][name], center) for group, center in CENTERS if group in h5
               for name in h5[group]
               if h5[group][name].ndim >= 2 and h5[group][name].shape[:2] == (n_pairs, counts[group])]
     f_number, f_precision = _number_type(faces.dtype)
-    topology = (f'<Topology TopologyType="Triangle" NumberOfElements="{m}">\n'
-                f'  <DataItem Dimensions="{m} 3" NumberType="{f_number}" Precision="{f_precision}" '
-                f'Format="HDF">{escape(h5_name, quote=False)}:/mesh/faces</DataItem>\n</Topology>')
+    topology = (f'<Topology TopologyType="{kind}" NumberOfElements="{m}">\n'
+                f'  <DataItem Dimensions="{m} {faces.shape[1]}" NumberType="{f_number}" '
+                f'Precision="{f_precision}" '
+                f'Format="HDF">{escape(h5_name, quote=False)}:/mesh/{cells}</DataItem>\n</Topology>')
     grids = []
     for p, (r, d) in enumerate(pairs):
         geometry = _slab(h5_name, positions, int(d), f"{h5_name}:/frame_vertices[{int(d)}]")

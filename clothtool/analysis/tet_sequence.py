@@ -1,0 +1,174 @@
+"""``analyze_sequence`` on a tetrahedral sequence: per-tetrahedron fields streamed to HDF5.
+
+The result has ``/mesh/tets`` (M, 4) instead of ``/mesh/faces`` and the fields of
+:mod:`clothtool.analysis.tet` under ``/tet/`` (P, M, …), chunked one pair per row like the
+triangle fields; ``/frame_vertices``, ``/pairs``, ``/frames`` and ``/summary`` are as for
+triangles. One frame (plus the current reference) is in memory at a time.
+"""
+
+import functools
+import os
+import time
+
+import numpy as np
+
+from clothtool import interrupt
+from clothtool.analysis.tet import (DEGENERATE_TOL, TET_FIELDS, TET_SHAPES, allocate_fields,
+                                    allocate_rest, rest_from_positions, tet_fields)
+from clothtool.errors import InputError
+from clothtool.io.h5 import AtomicH5, PairWriter, create_pair_dataset
+from clothtool.io.tetmesh import TetFrameReader, read_tet_mesh
+from clothtool.results.summary import SummaryWriter
+
+NEEDED = ("stretch", "volume_ratio", "flags")  # computed for /summary even if not stored
+
+
+def parse_tet_fields(fields):
+    """'all', a comma-separated string or an iterable of names → tuple in canonical order."""
+    if fields is None or fields == "all":
+        return TET_FIELDS
+    names = [f.strip() for f in fields.split(",")] if isinstance(fields, str) else list(fields)
+    names = [n for n in names if n]
+    unknown = [n for n in names if n not in TET_FIELDS]
+    if unknown or not names:
+        raise InputError((f"--fields: unknown field {unknown[0]!r} for tetrahedra" if unknown
+                          else "--fields: empty") + f"; choose from {', '.join(TET_FIELDS)}")
+    return tuple(n for n in TET_FIELDS if n in names)
+
+
+def check_tet_options(reference, kabsch, vertex_average):
+    """Options of the triangle analysis that do not apply to tetrahedra: one-line errors."""
+    if kabsch:
+        raise InputError("--kabsch: the 3D variant is for triangle meshes; a tetrahedral "
+                         "sequence already gets the full 3×3 analysis")
+    if reference == "uv":
+        raise InputError("--reference uv: tetrahedral meshes have no texture coordinates; "
+                         "use previous, first or a mesh file")
+    if vertex_average:
+        raise InputError("--vertex-average: only for triangle meshes")
+
+
+class _TetRest:
+    """D_r⁻¹ and flags of the current reference, computed once per reference frame."""
+
+    def __init__(self, reader, external):
+        self.reader, self.external = reader, external
+        self._key, self._data = None, None
+
+    def vertices(self):
+        return self.external if self.external is not None else self.reader.first.vertices
+
+    def put(self, index, data):
+        self._key, self._data = index, data
+
+    def get(self, index, positions):
+        if self._key != index:
+            self._data = rest_from_positions(positions, self.reader.tets, DEGENERATE_TOL)
+            self._key = index
+        return self._data
+
+
+def analyze_tets(paths, output, xdmf, *, reference, fields, store, compression, kabsch,
+                 progress, command, pairs, vertex_average, started):
+    """:func:`clothtool.analysis.sequence.analyze_sequence` of the tetrahedral sequence
+    ``paths``, which has parsed ``store`` and ``compression`` and checked ``output`` (and its
+    XDMF path ``xdmf``); the other arguments as there. Returns its AnalysisSummary."""
+    from clothtool.analysis import sequence
+    from clothtool.io.h5 import check_not_an_input
+    from clothtool.results.slices import parse_pair_slice
+    from clothtool.results.xdmf import xdmf_text
+
+    check_tet_options(reference, kabsch, vertex_average)
+    fields = parse_tet_fields(fields)
+    internal = reference in ("previous", "first")
+    check_not_an_input(output, paths if internal else [*paths, reference])
+    if internal and len(paths) < 2:
+        raise InputError(f"{paths[0]}: only one frame; --reference {reference} needs at least two")
+    reader = TetFrameReader(paths)
+    external = None
+    if not internal:
+        if not os.path.isfile(reference):
+            raise InputError(f"--reference: {reference!r} is not previous, first or an existing "
+                             "mesh file")
+        external = reader.check_same_topology(read_tet_mesh(reference, reuse=reader.first),
+                                              reference).vertices
+    rest = _TetRest(reader, external)
+    all_pairs = sequence.plan_pairs(len(paths), reference)
+    offset, stop = parse_pair_slice(pairs, len(all_pairs))
+    pairs = all_pairs[offset:stop]
+    m, n = len(reader.tets), reader.n_vertices
+    summary = sequence.AnalysisSummary(os.fspath(output), len(paths), len(pairs), 0, n, fields,
+                                       reference, 0.0, tets=m,
+                                       ignored_cells=reader.first.other_cells)
+
+    atomic = AtomicH5(output)
+    with atomic as h5:
+        sequence.write_common_header(h5, paths, pairs, reference, command, store, DEGENERATE_TOL)
+        h5.attrs["pair_offset"] = offset
+        h5.attrs["pairs_total"] = len(all_pairs)
+        h5.attrs["ignored_cells"] = reader.first.other_cells
+        mesh = h5.create_group("mesh")
+        mesh.create_dataset("tets", data=reader.tets)
+        mesh.create_dataset("vertices", data=rest.vertices())
+        positions = create_pair_dataset(h5, "frame_vertices", len(paths), (n, 3), store,
+                                        compression, fillvalue=np.nan)
+        table = SummaryWriter(h5, pairs, offset, tets=True)
+        group = h5.create_group("tet")
+        datasets = {name: create_pair_dataset(group, name, len(pairs), (m, *TET_SHAPES[name]),
+                                              np.uint8 if name == "flags" else store, compression)
+                    for name in fields}
+        stored = np.zeros(len(paths), bool)
+
+        def finish_pair(p, buffers, frames):  # on the writer thread, overlapping the next pair
+            for index, x in frames:
+                if index >= 0 and not stored[index]:
+                    positions[index] = x
+                    stored[index] = True
+            table.add(p, buffers["stretch"], buffers["volume_ratio"], buffers["flags"])
+
+        def make_buffers():
+            return allocate_fields(m, {*fields, *NEEDED}, store)
+
+        with PairWriter(datasets, make_buffers) as writer, sequence.kernel_threads_beside_writer():
+            last = (0, reader.first.vertices)
+            for p, (r, d) in enumerate(_progress(pairs, progress)):
+                interrupt.check()
+                r, d = int(r), int(d)
+                if r == sequence.EXTERNAL:
+                    x_ref = rest.vertices()
+                else:
+                    x_ref = last[1] if last[0] == r else reader.positions(r)
+                ref = rest.get(r, x_ref)
+                x = last[1] if last[0] == d else reader.positions(d)
+                last = (d, x)
+                buffers = writer.buffers()
+                # in a 'previous' sequence this frame is the next reference: its D_r⁻¹ comes
+                # from the same pass (fresh arrays: the writer thread may still read these)
+                next_rest = allocate_rest(m if reference == "previous" else 0)
+                tet_fields(x, reader.tets, *ref, DEGENERATE_TOL,
+                           *(buffers[name] for name in TET_FIELDS), *next_rest)
+                if reference == "previous":
+                    rest.put(d, next_rest)
+                _accumulate(summary, buffers)
+                writer.write(p, buffers, functools.partial(finish_pair, p, buffers,
+                                                           ((r, x_ref), (d, x))))
+        table.close()
+        atomic.add_sidecar(xdmf, xdmf_text(h5, os.path.basename(output)))  # renamed with it
+    summary.seconds = time.perf_counter() - started
+    return summary
+
+
+def _accumulate(summary, buffers):
+    s = buffers["stretch"]
+    if s.size and np.isfinite(s).any():
+        summary.stretch_max = float(np.fmax(summary.stretch_max, np.nanmax(s[:, 0])))
+        summary.stretch_min = float(np.fmin(summary.stretch_min, np.nanmin(s[:, 2])))
+    summary.flagged += int(np.count_nonzero(buffers["flags"]))
+
+
+def _progress(pairs, enabled):
+    if not enabled:
+        return pairs
+    from tqdm import tqdm
+
+    return tqdm(pairs, desc="analyze", unit="pair", leave=False)
