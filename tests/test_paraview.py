@@ -26,7 +26,7 @@ FRAMES = 5
 INSTALL = ("needs ParaView's pvpython{} (Debian/Ubuntu: apt-get install --no-install-recommends "
            "paraview python3-paraview xvfb xauth; or set PVPYTHON to pvpython's path)")
 
-# Run by pvpython: argv = a JSON file of jobs [{"xdmf", "reader", "out"}] and a PNG path.
+# Run by pvpython: argv = a JSON file of jobs [{"xdmf", "reader", "out"}] and a PNG path (or -).
 # Writes, per job, the arrays of every step to job["out"] (.npz) and prints one JSON line.
 PROBE = r'''
 import json, sys
@@ -34,7 +34,7 @@ import numpy as np
 from paraview import servermanager, simple
 from paraview.vtk.util.numpy_support import vtk_to_numpy
 
-jobs, png = json.load(open(sys.argv[1])), sys.argv[2]
+jobs, png = json.load(open(sys.argv[1])), sys.argv[2] if sys.argv[2] != "-" else None
 READERS = {"XDMFReader": "FileNames", "Xdmf3ReaderS": "FileName", "Xdmf3ReaderT": "FileName"}
 results = []
 for job in jobs:
@@ -95,8 +95,9 @@ def pvpython():
     return ["xvfb-run", "--auto-servernum", found, "--force-offscreen-rendering"]
 
 
-def run_paraview(tmp_path, jobs, png=""):
-    """Run :data:`PROBE` on ``jobs`` [(xdmf, reader)]; returns (ParaView's version,
+def run_paraview(tmp_path, jobs, png=None):
+    """Run :data:`PROBE` on ``jobs`` [(xdmf, reader)], rendering the last step of the first
+    one to ``png`` if given; returns (ParaView's version,
     [(result, arrays)] in the order of ``jobs``)."""
     script, spec = tmp_path / "probe.py", tmp_path / "jobs.json"
     script.write_text(PROBE)
@@ -104,7 +105,7 @@ def run_paraview(tmp_path, jobs, png=""):
               for k, (x, r) in enumerate(jobs)]
     spec.write_text(json.dumps(listed))
     env = dict(os.environ, QT_QPA_PLATFORM="offscreen")
-    proc = subprocess.run([*pvpython(), str(script), str(spec), str(png)],
+    proc = subprocess.run([*pvpython(), str(script), str(spec), str(png or "-")],
                           capture_output=True, text=True, timeout=600, env=env)
     lines = [line for line in proc.stdout.splitlines() if line.startswith("PROBE ")]
     assert proc.returncode == 0 and lines, proc.stdout[-3000:] + proc.stderr[-3000:]
