@@ -20,6 +20,7 @@ import numpy as np
 
 from clothtool.errors import InputError
 from clothtool.results.info import open_result
+from clothtool.results.xdmf import VIEWS
 
 PAIR_GROUPS = ("face", "vertex", "edge", "summary")
 VARYING_ATTRS = ("command", "created", "pair_offset", "merged_commands")  # differ between parts
@@ -34,8 +35,10 @@ def _is_per_pair(h5, name):
 
 
 def _datasets(h5):
+    """Names of the stored datasets (not the XDMF's views, which are made anew)."""
     names = []
-    h5.visititems(lambda name, obj: names.append(name) if hasattr(obj, "shape") else None)
+    h5.visititems(lambda name, obj: names.append(name) if hasattr(obj, "shape")
+                  and name.split("/")[0] != VIEWS else None)
     return names
 
 
