@@ -87,10 +87,12 @@ class PlyHeader:
 
 @dataclass
 class PlyMesh:
-    """A triangle mesh as read from a PLY file.
+    """A triangle mesh as read from a PLY (or OBJ) file.
 
     ``faces`` are triangles (polygons fan-triangulated), ``face_source[k]`` is the
-    index of the file's polygon that triangle k came from.
+    index of the file's polygon that triangle k came from. ``corner_uv[k, j]`` is the
+    texture position of corner j of triangle k (PLY face ``texcoord``, OBJ ``vt``): on a
+    uv seam one vertex has two.
     """
 
     vertices: np.ndarray  # (N, 3) float64
@@ -99,6 +101,9 @@ class PlyMesh:
     vertex_properties: dict = field(default_factory=dict)
     header: PlyHeader | None = None
     face_block: bytes = b""  # raw bytes of the face element, for reuse checks
+    corner_uv: np.ndarray | None = None  # (M, 3, 2) per-corner texture coordinates, or None
+    corner_uv_missing: np.ndarray | None = None  # (M,) bool: triangles without corner uv
+    source_lines: np.ndarray | None = None  # (F,) file line of each source face (OBJ only)
 
     @property
     def uv(self):
