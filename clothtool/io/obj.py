@@ -22,7 +22,7 @@ import warnings
 import numpy as np
 
 from clothtool.errors import InputError
-from clothtool.io.ply import PlyMesh
+from clothtool.io.ply import PlyMesh, fan
 
 _PROBE_BYTES = 4096
 _WS = np.zeros(256, bool)
@@ -378,20 +378,3 @@ def _finish(parsed, path):
     mesh = PlyMesh(vertices, faces, source)
     mesh.corner_uv, mesh.corner_uv_missing, mesh.source_lines = corner_uv, missing, c.line
     return mesh
-
-
-def fan(lengths):
-    """Fan triangulation of polygons with ``lengths`` corners (each ≥ 3), corners numbered
-    consecutively: (corner ids (M, 3) int64, source polygon (M,) int64)."""
-    lengths = np.asarray(lengths, np.int64)
-    per_face = lengths - 2
-    source = np.repeat(np.arange(len(lengths), dtype=np.int64), per_face)
-    if len(lengths) and (lengths == lengths[0]).all():
-        k = int(lengths[0])
-        pattern = np.stack([np.zeros(k - 2, np.int64), np.arange(1, k - 1), np.arange(2, k)], 1)
-        ids = (np.arange(len(lengths))[:, None, None] * k + pattern).reshape(-1, 3)
-        return ids, source
-    starts = np.cumsum(lengths) - lengths
-    first = np.repeat(starts, per_face)
-    j = np.arange(len(source)) - np.repeat(np.cumsum(per_face) - per_face, per_face) + 1
-    return np.stack([first, first + j, first + j + 1], axis=1), source
