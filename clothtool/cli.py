@@ -249,6 +249,7 @@ Examples:
   clothtool analyze frames/ -o part0.h5 --pairs 0:500      # on one machine
   clothtool analyze frames/ -o part1.h5 --pairs 500:1000   # on another
   clothtool merge part*.h5 -o all.h5                       # equal to one run over 0:1000
+  clothtool merge part0.h5 -o first.h5 --allow-partial     # only pairs 0:500
 
 """ + EXIT_CODES_HELP
 
@@ -257,15 +258,19 @@ Examples:
 @click.argument("parts", nargs=-1, required=True, type=click.Path(dir_okay=False))
 @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False),
               help="HDF5 file to write (an XDMF is written beside it).")
-def merge(parts, output):
+@click.option("--allow-partial", is_flag=True,
+              help="Accept parts that cover only some of the analysis' pairs (still consecutive).")
+def merge(parts, output, allow_partial):
     """Join results computed in slices (analyze --pairs) into one result.
 
     PARTS are slices of the same analysis, in any order; together they must cover
-    consecutive pairs without gap or overlap.
+    every pair of the analysis, consecutively, without gap or overlap (with
+    --allow-partial: consecutive pairs only).
     """
     from clothtool.results.merge import merge_results
 
-    offset, n = merge_results(list(parts), output, command=" ".join(["clothtool", *sys.argv[1:]]))
+    offset, n = merge_results(list(parts), output, command=" ".join(["clothtool", *sys.argv[1:]]),
+                              allow_partial=allow_partial)
     click.echo(f"wrote {output}: pairs {offset}:{offset + n} from {len(parts)} parts")
 
 
