@@ -215,18 +215,24 @@ def _faces_fast(lines):
     k = int(corners[0])
     if k < 3 or not (corners == k).all():
         return None
-    buf = lines.buf
-    slash = buf == SLASH
-    slashes = lines.count_in_lines(slash)[rows]
-    double = np.zeros(len(buf), bool)
-    double[:-1] = slash[:-1] & slash[1:]
-    doubles = lines.count_in_lines(double)[rows]
-    s, d = int(slashes[0]) // k, int(doubles[0]) // k
-    form = _FORMS.get((s, d))
-    if form is None or not ((slashes == s * k).all() and (doubles == d * k).all()):
-        return None
     text = lines.text(which, 1)
     if not _FACE_OK[text].all():
+        return None
+    # the corner form: every corner (word) has the same numbers of '/' and of '//'
+    ws = _WS[text]
+    first = ~ws
+    first[1:] &= ws[:-1]
+    word = np.cumsum(first) - 1
+    n_words = len(rows) * k
+    at = text == SLASH
+    double = at.copy()
+    double[:-1] &= at[1:]
+    double[-1] = False
+    per_word = np.bincount(word[at], minlength=n_words)
+    doubles = np.bincount(word[double], minlength=n_words)
+    form = _FORMS.get((int(per_word[0]), int(doubles[0])))
+    if form is None or len(per_word) != n_words or not (
+            (per_word == per_word[0]).all() and (doubles == doubles[0]).all()):
         return None
     # every '-' starts a number, every '/' sits between a number and a number or a '/'
     prev = np.concatenate([[32], text[:-1]])
@@ -234,7 +240,6 @@ def _faces_fast(lines):
     minus = text == MINUS
     if minus.any() and not ((_WS[prev[minus]] | (prev[minus] == SLASH)) & _DIGIT[nxt[minus]]).all():
         return None
-    at = text == SLASH
     if at.any() and not ((_DIGIT[prev[at]] | (prev[at] == SLASH))
                          & (_DIGIT[nxt[at]] | (nxt[at] == MINUS) | (nxt[at] == SLASH))).all():
         return None
