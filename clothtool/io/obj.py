@@ -119,27 +119,33 @@ class _Lines:
         return False
 
     def tokens(self):
-        """Whitespace-separated words on each line (keyword included)."""
+        """Whitespace-separated words on each line (keyword included). Any byte ≤ 32 counts as
+        whitespace here; a control character that is not makes ``np.fromstring`` fail, and
+        the per-line path then names it."""
         if self._tokens is None:
-            ws = _WS[self.buf]
+            ws = self.buf <= 32
             first = ~ws
             first[1:] &= ws[:-1]
-            self._tokens = np.add.reduceat(first.astype(np.int32), self.starts)
-            self._tokens[self.ends == self.starts] = 0
+            at = np.flatnonzero(first)
+            self._tokens = np.searchsorted(at, self.ends) - np.searchsorted(at, self.starts)
         return self._tokens
 
-    def count_in_lines(self, mask_bytes):
-        return np.add.reduceat(mask_bytes.astype(np.int32), self.starts)
-
     def text(self, which, keyword):
-        """(bytes of the lines ``which`` (a line mask) with their keyword blanked, the same as a
-        uint8 array)."""
-        span = np.diff(np.concatenate([self.starts, [len(self.buf)]]))
-        mask = np.repeat(which, span)
-        work = self.buf.copy()
+        """The bytes (uint8, a copy) of the lines ``which`` (a line mask), their keyword blanked."""
+        rows = np.flatnonzero(which)
+        n = len(self.buf)
+        if rows[-1] - rows[0] + 1 == len(rows):  # one block of lines (the usual case)
+            begin = self.starts[rows[0]]
+            stop = self.starts[rows[-1] + 1] if rows[-1] + 1 < len(self.starts) else n
+            out = self.buf[begin:stop].copy()
+            line_starts = self.starts[rows] - begin
+        else:
+            span = np.diff(np.concatenate([self.starts, [n]]))
+            out = self.buf[np.repeat(which, span)]
+            line_starts = np.cumsum(span[rows]) - span[rows]
         for k in range(keyword):
-            work[self.starts[which] + k] = 32
-        return work[mask]
+            out[line_starts + k] = 32
+        return out
 
 
 def _fromstring(text, dtype):
@@ -216,34 +222,42 @@ def _faces_fast(lines):
     if k < 3 or not (corners == k).all():
         return None
     text = lines.text(which, 1)
-    if not _FACE_OK[text].all():
+    counts = np.bincount(text, minlength=256)
+    if counts[~_FACE_OK].any():
         return None
     # the corner form: every corner (word) has the same numbers of '/' and of '//'
-    ws = _WS[text]
+    ws = text <= 32
     first = ~ws
     first[1:] &= ws[:-1]
-    word = np.cumsum(first) - 1
+    word = np.flatnonzero(first)
     n_words = len(rows) * k
-    at = text == SLASH
-    double = at.copy()
-    double[:-1] &= at[1:]
-    double[-1] = False
-    per_word = np.bincount(word[at], minlength=n_words)
-    doubles = np.bincount(word[double], minlength=n_words)
-    form = _FORMS.get((int(per_word[0]), int(doubles[0])))
-    if form is None or len(per_word) != n_words or not (
-            (per_word == per_word[0]).all() and (doubles == doubles[0]).all()):
+    if len(word) != n_words:
         return None
-    # every '-' starts a number, every '/' sits between a number and a number or a '/'
-    prev = np.concatenate([[32], text[:-1]])
-    nxt = np.concatenate([text[1:], [32]])
-    minus = text == MINUS
-    if minus.any() and not ((_WS[prev[minus]] | (prev[minus] == SLASH)) & _DIGIT[nxt[minus]]).all():
+    word_end = np.append(word[1:], len(text))
+    at = np.flatnonzero(text == SLASH) if counts[SLASH] else np.zeros(0, np.int64)
+    double = at[:-1][np.diff(at) == 1]
+    form = None
+    for (s, d), name in _FORMS.items():
+        if len(at) == s * n_words and len(double) == d * n_words:
+            form = name
+    if form is None:
         return None
-    if at.any() and not ((_DIGIT[prev[at]] | (prev[at] == SLASH))
-                         & (_DIGIT[nxt[at]] | (nxt[at] == MINUS) | (nxt[at] == SLASH))).all():
-        return None
-    text = text.copy()
+    if len(at):  # s slashes inside each word, d of them doubled
+        per = at.reshape(n_words, -1)
+        if not ((per[:, 0] > word).all() and (per[:, -1] < word_end).all()):
+            return None
+        if len(double) and not ((double > word) & (double < word_end)).all():
+            return None
+        # each '/' between a number and a number or a '/'
+        before_, after = text[at - 1], text[np.minimum(at + 1, len(text) - 1)]
+        if not ((_DIGIT[before_] | (before_ == SLASH))
+                & (_DIGIT[after] | (after == MINUS) | (after == SLASH))).all():
+            return None
+    if counts[MINUS]:  # every '-' starts a number
+        minus = np.flatnonzero(text == MINUS)
+        before_, after = text[minus - 1], text[np.minimum(minus + 1, len(text) - 1)]
+        if not (((before_ <= 32) | (before_ == SLASH)) & _DIGIT[after]).all():
+            return None
     text[at] = 32
     values = _fromstring(text.tobytes(), np.int64)
     per = len(form)
