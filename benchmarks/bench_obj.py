@@ -112,8 +112,9 @@ def run(out_dir):
         fh.write("## Reading OBJ (one 224×224-vertex frame, 99 458 triangles; median of "
                  f"{REPEAT} reads, file in the page cache)\n\n")
         fh.write(markdown_table(rows, columns))
-        fh.write("\ntriangles: what each reader returns (trimesh and meshio keep quads as quads; "
-                 "trimesh may also split vertices at uv seams, which clothtool never does).\n")
+        fh.write("\ntriangles: what each reader returns (meshio keeps quads as quad cells, counted "
+                 "here as two triangles each). With `process=False` trimesh still splits a vertex "
+                 "that has two uv (a seam); clothtool keeps the `v` order and count.\n")
     for r in rows:
         print(f"{r['file']:34s} {r['reader']:30s} {r['ms_per_frame']:8.1f} ms "
               f"{r['MB_per_s']:7.1f} MB/s")

@@ -110,7 +110,8 @@ Examples:
   clothtool analyze 'cap/*.ply' -o out.h5 --reference first --fields stretch,area_ratio
       every frame against the first, only two fields stored
   clothtool analyze sim/ -o out.h5 --reference uv --uv-scale 0.5
-      rest shape from the s,t / u,v texture coordinates (Baraff-Witkin)
+      rest shape from the texture coordinates (Baraff-Witkin): per corner
+      (PLY texcoord, OBJ vt; right on both sides of a uv seam) or per vertex (s,t / u,v)
   clothtool analyze frames/ -o out.h5 --reference rest.ply --dtype float64
   clothtool analyze frames/ -o part1.h5 --pairs 100:200
       only pairs 100..199; join the parts with `clothtool merge`
@@ -135,7 +136,7 @@ Open out.xdmf (written beside out.h5) in ParaView for the deformed mesh over tim
               help="HDF5 file to write (written under a temporary name, renamed when complete).")
 @click.option("--reference", default="previous", show_default=True, metavar="previous|first|uv|PATH",
               help="Rest state of each pair: the previous frame, the first frame, the texture "
-                   "coordinates, or a PLY mesh.")
+                   "coordinates, or a PLY or OBJ mesh.")
 @click.option("--uv-scale", default=1.0, show_default=True, type=float,
               help="Metres per uv unit for --reference uv.")
 @click.option("--fields", default="all", show_default=True, metavar="NAMES",
@@ -155,9 +156,9 @@ Open out.xdmf (written beside out.h5) in ParaView for the deformed mesh over tim
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary.")
 def analyze(inputs, output, reference, uv_scale, fields, dtype, compression, vertex_average,
             pair_slice, kabsch, quiet):
-    """Per-triangle deformation of a PLY sequence, written to HDF5.
+    """Per-triangle deformation of a PLY or OBJ sequence, written to HDF5.
 
-    FRAMES is a folder of .ply files, a glob, or a list of files; they are
+    FRAMES is a folder of .ply or .obj files, a glob, or a list of files; they are
     taken in natural order (f2.ply before f10.ply) and analysed in pairs. For
     each triangle: the deformation gradient F in the triangle's tangent frame,
     C = FᵀF, the polar split F = R·U, principal stretches and directions, the
