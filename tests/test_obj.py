@@ -310,3 +310,18 @@ def test_kabsch_with_uv_seam_fails_and_without_seam_works(tmp_path):
     write_obj(tmp_path / "plain.obj", vertices, faces, plain)
     result = analyze([tmp_path / "plain.obj", "-o", tmp_path / "k.h5", "--reference", "uv", "--kabsch"])
     assert result.exit_code == 0, result.output
+
+
+@pytest.mark.parametrize("body, message", [
+    (b"vt 0 0 0 0\nf 1 2 3\n", "line 5: texture coordinate has 4 numbers"),
+    (b"vt\nf 1 2 3\n", "line 5: texture coordinate has 0 numbers"),
+    (b"f 1 2 3 4 5\n", "line 5: vertex index 5 is out of range (the file has 4 vertices)"),
+    (b"f 1/1 2/2 3/3\n", "line 5: texture index 1 is out of range (the file has 0 texture"),
+    (b"f 1//2 2//2 3//2\nvn 0 0 1\n", "line 5: normal index 2 is out of range"),
+    (b"f 1/1/1/1 2 3\n", "line 5: bad face corner '1/1/1/1'"),
+    (b"f 1 2 x\n", "line 5: index 'x' is not an integer"),
+    (b"f 1 2 3\nf 1\n", "line 6: face has 1 corners"),
+])
+def test_errors_name_the_line(body, message):
+    with pytest.raises(InputError, match="^bad.obj: " + message.replace("(", r"\(").replace(")", r"\)")):
+        parse_obj(SQUARE + body, "bad.obj")

@@ -166,7 +166,7 @@ def _vectors(lines, kind, path, data):
         return np.zeros((0, width))
     counts = lines.tokens()[rows] - 1
     k = int(counts[0])
-    if (counts == k).all() and (3 if kind == _V else 1) <= k:
+    if (counts == k).all() and (3 <= k if kind == _V else 1 <= k <= 3):
         keyword = 1 if kind == _V else 2
         values = _fromstring(lines.text(which, keyword).tobytes(), np.float64)
         if values is not None and values.size == k * len(rows):
