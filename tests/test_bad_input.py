@@ -282,7 +282,7 @@ def empty_folder(tmp):
 def folder_without_ply_files(tmp):
     (tmp / "seq").mkdir()
     (tmp / "seq" / "notes.txt").write_text("frames to come")
-    return Case([str(tmp / "seq")], "no .ply files")
+    return Case([str(tmp / "seq")], "no .ply or .obj files")
 
 
 @case
