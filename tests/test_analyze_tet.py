@@ -173,7 +173,7 @@ def _no_tets(folder):
 def _mixed_formats(folder):
     make_sequence(folder, frames=2)
     write_tet_file(folder / "g", X, TETS, "msh22")
-    return None, [f"{folder}: folder holds several mesh formats (.msh, .vtu)"]
+    return None, [f"{folder}: folder holds both .vtu and .msh files (", "g.msh)"]
 
 
 def _ply_among_tets(folder):
@@ -181,7 +181,7 @@ def _ply_among_tets(folder):
 
     paths = make_sequence(folder, frames=2)
     write_ply(folder / "f1.ply", X, TETS[:, :3])
-    return [paths[0], folder / "f1.ply"], [f"{folder / 'f1.ply'}: not a tetrahedral mesh file"]
+    return [paths[0], folder / "f1.ply"], ["the frames are both .ply and .vtu files (f1.ply, f0.vtu)"]
 
 
 @pytest.mark.parametrize("case", [_different_tets, _fewer_vertices, _broken_frame, _no_tets,

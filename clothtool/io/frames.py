@@ -1,4 +1,9 @@
-"""Finding the frames of a sequence: a folder, a glob, or a list of files, in natural order."""
+"""Finding the frames of a sequence: a folder, a glob, or a list of files, in natural order.
+
+A sequence is in one format, known from the extension: ``.obj`` files are read as Wavefront
+OBJ (:mod:`clothtool.io.obj`), ``.vtu``, ``.vtk``, ``.msh`` and ``.node`` as tetrahedral meshes
+(:mod:`clothtool.io.tetmesh`, by the tetrahedral analysis), anything else as PLY
+(:mod:`clothtool.io.ply`)."""
 
 import glob
 import os
@@ -9,12 +14,32 @@ import numpy as np
 from clothtool.errors import InputError
 
 _DIGITS = re.compile(r"(\d+)")
+MESH_EXTENSIONS = (".ply", ".obj")
 TET_EXTENSIONS = (".vtu", ".vtk", ".msh", ".node")  # as clothtool.io.tetmesh (not imported: start-up)
+FRAME_EXTENSIONS = MESH_EXTENSIONS + TET_EXTENSIONS
+
+
+def mesh_format(path):
+    """'obj' for a ``.obj`` file (any case), the extension of a tetrahedral mesh file
+    ('vtu', 'vtk', 'msh', 'node'), else 'ply'."""
+    ext = os.path.splitext(os.fspath(path))[1].lower()
+    return ext[1:] if ext in (".obj", *TET_EXTENSIONS) else "ply"
 
 
 def is_tet_path(path):
     """Whether ``path`` names a tetrahedral mesh file (by its extension)."""
     return os.path.splitext(os.fspath(path))[1].lower() in TET_EXTENSIONS
+
+
+def read_mesh(path, *, reuse=None):
+    """Read a PLY or OBJ file (by extension) into a :class:`~clothtool.io.ply.PlyMesh`."""
+    if mesh_format(path) == "obj":
+        from clothtool.io.obj import read_obj
+
+        return read_obj(path, reuse=reuse)
+    from clothtool.io.ply import read_ply
+
+    return read_ply(path, reuse=reuse)
 
 
 def natural_key(path):
@@ -24,32 +49,25 @@ def natural_key(path):
 
 
 def discover_frames(inputs):
-    """Resolve ``inputs`` (a path, a glob or a list of them) to an ordered list of frame files.
+    """Resolve ``inputs`` (a path, a glob or a list of them) to an ordered list of mesh files.
 
-    A folder contributes its ``*.ply`` files (case-insensitive) or, if it has none, the
-    files of the one tetrahedral mesh format it holds (``.vtu``, ``.vtk``, ``.msh`` or TetGen
-    ``.node``); a glob its matches; each folder or glob is sorted naturally, explicit files
-    keep the order given.
+    A folder contributes its ``*.ply`` or ``*.obj`` files, or its tetrahedral meshes (``.vtu``,
+    ``.vtk``, ``.msh`` or TetGen ``.node``; case-insensitive; one format), a glob its matches;
+    each folder or glob is sorted naturally, explicit files keep the order given. All frames
+    must be in one format.
     """
     if isinstance(inputs, (str, os.PathLike)):
         inputs = [inputs]
     frames = []
     for item in map(os.fspath, inputs):
         if os.path.isdir(item):
-            files = [f for f in os.listdir(item) if os.path.isfile(os.path.join(item, f))]
-            found = [f for f in files if f.lower().endswith(".ply")]
+            found = [os.path.join(item, f) for f in os.listdir(item)
+                     if f.lower().endswith(FRAME_EXTENSIONS) and os.path.isfile(os.path.join(item, f))]
             if not found:
-                kinds = sorted({os.path.splitext(f)[1].lower() for f in files}
-                               & set(TET_EXTENSIONS))
-                if len(kinds) > 1:
-                    raise InputError(f"{item}: folder holds several mesh formats "
-                                     f"({', '.join(kinds)}); pass a glob such as "
-                                     f"'{os.path.join(item, '*' + kinds[0])}'")
-                found = [f for f in files if kinds and f.lower().endswith(kinds[0])]
-            if not found:
-                raise InputError(f"{item}: folder contains no .ply files "
-                                 f"(nor {', '.join(TET_EXTENSIONS)} tetrahedral meshes)")
-            frames.extend(sorted((os.path.join(item, f) for f in found), key=natural_key))
+                raise InputError(f"{item}: folder contains no .ply or .obj files (nor .vtu, .vtk, "
+                                 ".msh or .node tetrahedral meshes)")
+            _one_format(found, f"{item}: folder holds")
+            frames.extend(sorted(found, key=natural_key))
         elif os.path.isfile(item):
             frames.append(item)
         elif glob.has_magic(item):
@@ -61,7 +79,19 @@ def discover_frames(inputs):
             raise InputError(f"{item}: not a regular file or folder")
         else:
             raise InputError(f"{item}: no such file or folder")
+    _one_format(frames, "the frames are")
     return frames
+
+
+def _one_format(paths, what):
+    formats = {}
+    for p in paths:
+        formats.setdefault(mesh_format(p), p)
+    if len(formats) > 1:
+        order = [ext[1:] for ext in FRAME_EXTENSIONS]
+        a, b = sorted(formats, key=order.index)[:2]
+        raise InputError(f"{what} both .{a} and .{b} files ({os.path.basename(formats[a])}, "
+                         f"{os.path.basename(formats[b])}); a sequence is in one format")
 
 
 class FrameReader:
@@ -72,11 +102,8 @@ class FrameReader:
     """
 
     def __init__(self, paths):
-        from clothtool.io.ply import read_ply
-
-        self._read_ply = read_ply
         self.paths = list(paths)
-        self.first = read_ply(self.paths[0])
+        self.first = read_mesh(self.paths[0])
         if len(self.first.faces) == 0:
             raise InputError(f"{self.paths[0]}: mesh has no faces")
 
@@ -89,10 +116,10 @@ class FrameReader:
         return len(self.first.vertices)
 
     def mesh(self, i):
-        """The :class:`~clothtool.io.ply.PlyMesh` of frame ``i``, checked against frame 0."""
+        """The mesh (:class:`~clothtool.io.ply.PlyMesh`) of frame ``i``, checked against frame 0."""
         if i == 0:
             return self.first
-        return self.check_same_topology(self._read_ply(self.paths[i], reuse=self.first),
+        return self.check_same_topology(read_mesh(self.paths[i], reuse=self.first),
                                         self.paths[i])
 
     def positions(self, i):
