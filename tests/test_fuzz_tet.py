@@ -2,17 +2,38 @@
 and ascii) mutated anywhere, truncated, or replaced by random bytes. Every outcome is a
 consistent TetMesh or an InputError naming the file, never another exception or a hang."""
 
+import contextlib
+import signal
+import time
+
 import numpy as np
 import pytest
 from conftest import TET_VARIANTS, tet_grid, write_tet_file
 from hypothesis import given
 from hypothesis import strategies as st
-from test_fuzz import FUZZ, edit, no_hang
+from test_fuzz import FUZZ, HANG_SECONDS, edit
 
 from clothtool.errors import InputError
 from clothtool.io.tetmesh import TetMesh, read_tet_mesh
 
 X, TETS = tet_grid(2, np.random.default_rng(3))
+
+
+class Hang(BaseException):
+    """Raised by the alarm: a BaseException, so that no reader's error handling can hide it."""
+
+
+@contextlib.contextmanager
+def no_hang(seconds=HANG_SECONDS):
+    def expire(signum, frame):
+        raise Hang(f"reading took more than {seconds} s")
+    old = signal.signal(signal.SIGALRM, expire)
+    signal.setitimer(signal.ITIMER_REAL, seconds)
+    try:
+        yield
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        signal.signal(signal.SIGALRM, old)
 
 
 @pytest.fixture(scope="module")
@@ -113,3 +134,15 @@ def test_retokened_files(folder, seeds, data):
     for _ in range(data.draw(st.integers(1, 3))):
         words[data.draw(st.integers(0, len(words) - 1))] = data.draw(st.sampled_from(WORDS))
     outcome(folder, variant, b" ".join(words), seeds)
+
+
+def test_a_huge_gmsh_node_tag_fails_at_once(folder, seeds):
+    """meshio's Gmsh 4.1 reader allocates a table of max(node tag) + 1 entries: 24 GB here."""
+    text = seeds["msh41_ascii"][1]
+    start = text.index(b"$Nodes\n")
+    tag = f"\n{len(X)}\n".encode()  # the last node tag of the single node block
+    last = text.index(tag, start)
+    mutant = text[:last] + b"\n3000000000\n" + text[last + len(tag):]
+    started = time.perf_counter()
+    assert outcome(folder, "msh41_ascii", mutant, seeds) is None
+    assert time.perf_counter() - started < 5

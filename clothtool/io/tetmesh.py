@@ -59,13 +59,43 @@ def _reason(exc):
     return (f"{type(exc).__name__}: {text}" if text else type(exc).__name__)[:300]
 
 
+@contextlib.contextmanager
+def _address_space_for(path):
+    """Cap this process's address space at its current size plus 1 GiB plus 64× the file's
+    size while meshio reads ``path``: a corrupted count or tag makes some of its readers
+    allocate (and fill) arrays of that size, e.g. Gmsh 4.1's node-tag table of max(tag) + 1
+    entries, which would take the machine's memory for minutes; with the cap it is an
+    immediate MemoryError. Linux only (/proc); elsewhere nothing is capped."""
+    try:
+        import resource
+
+        with open("/proc/self/statm") as fh:
+            size = int(fh.read().split()[0]) * resource.getpagesize()
+        soft, hard = resource.getrlimit(resource.RLIMIT_AS)
+    except (ImportError, OSError, ValueError):
+        yield
+        return
+    cap = size + (1 << 30) + 64 * os.path.getsize(path)
+    if hard != resource.RLIM_INFINITY:
+        cap = min(cap, hard)
+    if soft != resource.RLIM_INFINITY and soft <= cap:
+        yield
+        return
+    resource.setrlimit(resource.RLIMIT_AS, (cap, hard))
+    try:
+        yield
+    finally:
+        resource.setrlimit(resource.RLIMIT_AS, (soft, hard))
+
+
 def _read_meshio(path, fmt, label):
     import importlib
 
     # The format's own reader: meshio.read() prints and calls sys.exit(1) on a ReadError.
     reader = importlib.import_module(f"meshio.{fmt}").read
     try:
-        with contextlib.redirect_stderr(io.StringIO()):  # meshio prints warnings with rich
+        # meshio prints warnings with rich
+        with contextlib.redirect_stderr(io.StringIO()), _address_space_for(path):
             mesh = reader(path)
         points = np.asarray(mesh.points, dtype=np.float64)
         blocks = [(block.type, np.asarray(block.data)) for block in mesh.cells]
