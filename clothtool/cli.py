@@ -17,7 +17,13 @@ except ImportError:  # pragma: no cover
         pass
 
 from clothtool import __version__, interrupt
-from clothtool.errors import ClothtoolError
+from clothtool.errors import ClothtoolError, InputError
+
+OPTIONS = {"fields": "--fields", "dtype": "--dtype", "compression": "--compression",
+           "pairs": "--pairs", "reference": "--reference", "uv_scale": "--uv-scale",
+           "vertex_average": "--vertex-average", "kabsch": "--kabsch", "pair": "--pair",
+           "field": "--field", "component": "--component", "color_range": "--range"}
+"""Library keyword argument → the option that sets it, for the messages of InputError."""
 
 EXIT_CODES_HELP = """\b
 Exit codes: 0 done, 2 bad input, usage or unusable output path,
@@ -42,7 +48,8 @@ class ClothtoolGroup(click.Group):
         try:
             return super().invoke(ctx)
         except ClothtoolError as exc:
-            _fail(ctx, f"error: {exc}", exc.exit_code, exc)
+            message = exc.format(OPTIONS) if isinstance(exc, InputError) else str(exc)
+            _fail(ctx, f"error: {message}", exc.exit_code, exc)
         except NoArgsIsHelpError:
             raise
         except click.UsageError as exc:
@@ -103,7 +110,14 @@ def _progress_enabled(quiet):
     return not quiet and sys.stderr.isatty()
 
 
-ANALYZE_EPILOG = """\b
+def _analyze_epilog():
+    from clothtool.analysis.fields import help_table
+
+    return (ANALYZE_EXAMPLES + "\b\nFields (--fields, comma separated; all = the default table, "
+            "extended = every 2D field):\n" + help_table() + ANALYZE_READING)
+
+
+ANALYZE_EXAMPLES = """\b
 Examples:
   clothtool analyze frames/ -o out.h5
       pairs (0,1), (1,2), ... of all *.ply in frames/, natural order
@@ -117,19 +131,18 @@ Examples:
   clothtool analyze frames/ -o out.h5 --kabsch --fields stretch,angle,residual,dihedral_change
       with the 3D variant: per-vertex ring rotation, residual and bending
 
+"""
+
+ANALYZE_READING = """
+
 \b
-Fields (--fields, comma separated; default all):
-  F C U R strain stretch directions area_ratio flags
-  with --kabsch also: rotation angle residual (per vertex, /vertex/...),
-  F3 R3 U3 stretch3 directions3 (per face), dihedral_change (per edge, /edge/...);
-  flags then also selects /vertex/flags and /edge/flags
 Read the result with h5py:  h5py.File('out.h5')['face/stretch'][k]  (pair k)
 Open out.xdmf (written beside out.h5) in ParaView for the deformed mesh over time.
 
 """ + EXIT_CODES_HELP
 
 
-@main.command(epilog=ANALYZE_EPILOG)
+@main.command(epilog=_analyze_epilog())
 @click.argument("inputs", nargs=-1, required=True, metavar="FRAMES...")
 @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False),
               help="HDF5 file to write (written under a temporary name, renamed when complete).")

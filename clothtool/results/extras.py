@@ -13,8 +13,6 @@ from clothtool.io.h5 import create_pair_dataset
 from clothtool.results.summary import SummaryWriter
 from clothtool.results.vertex_average import SUFFIX, VertexAverager, rest_areas
 
-NEEDED = ("stretch", "area_ratio", "flags")  # face fields computed for /summary even if not stored
-
 
 class PairExtras:
     """Creates the datasets in the open result ``h5`` and fills them from each pair's buffers.
