@@ -31,7 +31,7 @@ from benchmarks.common import markdown_table, write_csv
 from clothtool.analysis.deformation2d import DEGENERATE_TOL
 from clothtool.analysis.kabsch import horn_matrix, vertex_rotations
 from clothtool.analysis.symeig import adjugate_eigenvector4, jacobi_eigvals_batch
-from clothtool.analysis.topology import one_ring
+from clothtool.geometry import one_ring
 from clothtool.analysis.variant3d import KABSCH_FIELDS, Variant3D
 
 NX = NY = 224

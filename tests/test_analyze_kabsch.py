@@ -11,7 +11,7 @@ import clothtool
 from clothtool.analysis.dihedral import dihedral_change
 from clothtool.analysis.face3d import face_gradients3
 from clothtool.analysis.kabsch import vertex_rotations
-from clothtool.analysis.topology import interior_edges, one_ring
+from clothtool.geometry import hinges, one_ring
 from clothtool.cli import main
 from clothtool.errors import InputError
 from clothtool.io.ply import write_ply
@@ -36,7 +36,8 @@ def make_sequence(folder, nx=7, ny=6):
 
 def expected(x_ref, x_def, faces):
     offsets, neighbours = one_ring(faces, len(x_ref))
-    edges, opposite = interior_edges(faces, len(x_ref))
+    hinge, _ = hinges(faces, len(x_ref))
+    edges, opposite = hinge[:, :2], hinge[:, 2:]
     rotation, angle, residual, vflags = vertex_rotations(x_ref, x_def, offsets, neighbours)
     F3, R3, U3, stretch3, directions3, _ = face_gradients3(x_ref, x_def, faces)
     change, eflags = dihedral_change(x_ref, x_def, edges, opposite)
@@ -51,7 +52,8 @@ def test_layout_and_values(tmp_path, reference):
     xs, flat, faces = make_sequence(tmp_path / "seq")
     out = tmp_path / "out.h5"
     clothtool.analyze_sequence(tmp_path / "seq", out, reference=reference, dtype="float64", kabsch=True)
-    edges, opposite = interior_edges(faces, len(flat))
+    hinge, _ = hinges(faces, len(flat))
+    edges, opposite = hinge[:, :2], hinge[:, 2:]
     with h5py.File(out) as f:
         pairs = f["pairs"][:]
         np.testing.assert_array_equal(f["mesh/edges"][:], edges)

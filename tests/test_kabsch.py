@@ -19,7 +19,7 @@ from clothtool.analysis.kabsch import (
     vertex_rotations,
 )
 from clothtool.analysis.symeig import adjugate_eigenvector4, jacobi_eigvals_batch
-from clothtool.analysis.topology import interior_edges, one_ring
+from clothtool.geometry import hinges, one_ring
 
 HYP = settings(deadline=None, max_examples=60, suppress_health_check=[HealthCheck.too_slow])
 
@@ -65,44 +65,6 @@ def in_plane_stretches(x, faces, stretch3, directions3):
 
 rotations = st.integers(0, 2**32 - 1).map(lambda s: Rotation.random(random_state=s).as_matrix())
 translations = st.tuples(*[st.floats(-10, 10)] * 3).map(np.array)
-
-
-# ---------------------------------------------------------------- topology
-
-
-def test_one_ring_matches_a_brute_force_table():
-    x, faces = curved_patch(5, 4)
-    faces = np.concatenate([faces, [[0, 1, 1]]])  # a degenerate face adds no self-neighbour
-    n = len(x) + 1  # the last vertex is on no face
-    offsets, neighbours = one_ring(faces, n)
-    expected = [set() for _ in range(n)]
-    for f in faces:
-        for a in f:
-            expected[a] |= {b for b in f if b != a}
-    assert offsets.shape == (n + 1,) and offsets[0] == 0 and offsets[-1] == len(neighbours)
-    for i in range(n):
-        assert list(neighbours[offsets[i]:offsets[i + 1]]) == sorted(expected[i])
-
-
-def test_interior_edges_have_two_faces_and_carry_the_orientation():
-    x, faces = grid(5, 4)
-    faces[3] = faces[3][::-1]  # one inconsistently oriented face
-    edges, opposite = interior_edges(faces, len(x))
-    count = {}
-    for f in faces:
-        for k in range(3):
-            key = tuple(sorted((f[k], f[(k + 1) % 3])))
-            count[key] = count.get(key, []) + [f]
-    interior = sorted(k for k, v in count.items() if len(v) == 2)
-    assert [tuple(e) for e in edges] == interior
-    cyclic = {tuple(np.roll(f, s)) for f in faces for s in range(3)}
-    for (i, j), (k0, k1) in zip(edges, opposite):
-        fs = count[(i, j)]
-        assert {k0, k1} == {int(np.setdiff1d(f, [i, j])[0]) for f in fs}
-        runs_forward = [(i, j, int(np.setdiff1d(f, [i, j])[0])) in cyclic for f in fs]
-        if any(runs_forward):
-            assert (i, j, k0) in cyclic
-    assert len(edges) == 4 * 2 + 3 * 3 + 4 * 3  # interior horizontal + vertical + diagonal edges
 
 
 # ---------------------------------------------------------------- eigen-solver
@@ -390,7 +352,8 @@ def test_face_F3_agrees_with_the_2D_analysis(rng):
 @given(rotations, translations)
 def test_dihedral_change_is_zero_for_rigid_motions(R, b):
     x, faces = curved_patch()
-    edges, opposite = interior_edges(faces, len(x))
+    hinge, _ = hinges(faces, len(x))
+    edges, opposite = hinge[:, :2], hinge[:, 2:]
     change, flags = dihedral_change(x, x @ R.T + b, edges, opposite)
     assert not flags.any()
     np.testing.assert_allclose(change, 0.0, atol=1e-12)
@@ -405,7 +368,8 @@ def test_dihedral_change_equals_the_fold_angle(fold):
     right = x[:, 0] > 1e-9
     y = x.copy()
     y[right] = x[right] @ Rotation.from_rotvec([0, fold, 0]).as_matrix().T
-    edges, opposite = interior_edges(faces, len(x))
+    hinge, _ = hinges(faces, len(x))
+    edges, opposite = hinge[:, :2], hinge[:, 2:]
     change, flags = dihedral_change(x, y, edges, opposite)
     assert not flags.any()
     on_fold = np.all(np.abs(x[edges, 0]) < 1e-9, axis=1)

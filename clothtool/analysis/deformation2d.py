@@ -27,44 +27,15 @@ from numba import njit, prange
 
 from clothtool import numba_setup  # noqa: F401  (threading layer, before the first kernel)
 from clothtool.analysis.fields import FIELDS_2D, NAMES_2D
-
-DEGENERATE_TOL = 1e-8
+from clothtool.geometry import DEGENERATE, DEGENERATE_TOL, NONFINITE, tangent_edge_matrix
 
 FLAG_REFERENCE_DEGENERATE = np.uint8(1)
-FLAG_DEFORMED_DEGENERATE = np.uint8(2)
-FLAG_NONFINITE = np.uint8(4)
+FLAG_DEFORMED_DEGENERATE = DEGENERATE
+FLAG_NONFINITE = NONFINITE
 FLAG_UV_FLIPPED = np.uint8(8)
 NAN_FLAGS = np.uint8(7)
 
 FIELDS = NAMES_2D
-
-
-@njit(cache=True, inline="always")
-def _edge_matrix(x, i0, i1, i2, tol):
-    """Tangent-frame edge matrix of triangle (i0, i1, i2): (a, b, c) = D[0,0], D[0,1], D[1,1],
-    the frame vectors t1 and t2 as six scalars, and a flag (0, degenerate or non-finite).
-    Scalars only: no allocation in the per-triangle loop."""
-    e1x, e1y, e1z = x[i1, 0] - x[i0, 0], x[i1, 1] - x[i0, 1], x[i1, 2] - x[i0, 2]
-    e2x, e2y, e2z = x[i2, 0] - x[i0, 0], x[i2, 1] - x[i0, 1], x[i2, 2] - x[i0, 2]
-    nx = e1y * e2z - e1z * e2y
-    ny = e1z * e2x - e1x * e2z
-    nz = e1x * e2y - e1y * e2x
-    area2 = np.sqrt(nx * nx + ny * ny + nz * nz)
-    l1 = e1x * e1x + e1y * e1y + e1z * e1z
-    l2 = e2x * e2x + e2y * e2y + e2z * e2z
-    l3 = (e2x - e1x) ** 2 + (e2y - e1y) ** 2 + (e2z - e1z) ** 2
-    if not np.isfinite(area2 + l1 + l2 + l3):
-        return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, FLAG_NONFINITE
-    if area2 <= tol * max(l1, l2, l3):
-        return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, FLAG_DEFORMED_DEGENERATE
-    a = np.sqrt(l1)
-    t1x, t1y, t1z = e1x / a, e1y / a, e1z / a
-    nx, ny, nz = nx / area2, ny / area2, nz / area2
-    t2x = ny * t1z - nz * t1y
-    t2y = nz * t1x - nx * t1z
-    t2z = nx * t1y - ny * t1x
-    b = t1x * e2x + t1y * e2y + t1z * e2z
-    return a, b, area2 / a, t1x, t1y, t1z, t2x, t2y, t2z, np.uint8(0)
 
 
 @njit(cache=True, inline="always")
@@ -95,7 +66,7 @@ def allocate_rest(m):
 @njit(cache=True, parallel=True, nogil=True)
 def _rest_from_positions(x, faces, tol, dinv, basis, flags):
     for k in prange(faces.shape[0]):
-        a, b, c, t1x, t1y, t1z, t2x, t2y, t2z, flag = _edge_matrix(
+        a, b, c, t1x, t1y, t1z, t2x, t2y, t2z, flag = tangent_edge_matrix(
             x, faces[k, 0], faces[k, 1], faces[k, 2], tol)
         _store_rest(k, a, b, c, t1x, t1y, t1z, t2x, t2y, t2z, flag, dinv, basis, flags)
 
@@ -353,7 +324,7 @@ def deformation_fields(x, faces, dinv, basis, ref_flags, tol, starts, needs, out
     data (D_r⁻¹, basis, flags), into the buffers of a :class:`KernelPlan` (``starts``,
     ``needs``). ``out`` may be float32 or float64; all arithmetic is float64."""
     for k in prange(faces.shape[0]):
-        a, b, c, _, _, _, _, _, _, flag = _edge_matrix(
+        a, b, c, _, _, _, _, _, _, flag = tangent_edge_matrix(
             x, faces[k, 0], faces[k, 1], faces[k, 2], tol)
         _triangle_fields(k, a, b, c, flag | ref_flags[k], dinv, basis, starts, needs, out,
                          out_flags)
@@ -366,7 +337,7 @@ def deformation_fields_and_next_rest(x, faces, dinv, basis, ref_flags, tol, star
     (as :func:`reference_from_positions`, into ``next_*`` from :func:`allocate_rest`): the
     reference of the next pair of a 'previous' sequence, for a few stores instead of a pass."""
     for k in prange(faces.shape[0]):
-        a, b, c, t1x, t1y, t1z, t2x, t2y, t2z, flag = _edge_matrix(
+        a, b, c, t1x, t1y, t1z, t2x, t2y, t2z, flag = tangent_edge_matrix(
             x, faces[k, 0], faces[k, 1], faces[k, 2], tol)
         _store_rest(k, a, b, c, t1x, t1y, t1z, t2x, t2y, t2z, flag,
                     next_dinv, next_basis, next_flags)

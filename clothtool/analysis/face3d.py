@@ -21,8 +21,8 @@ import numpy as np
 from numba import njit, prange
 
 from clothtool.analysis.deformation2d import (FLAG_DEFORMED_DEGENERATE, FLAG_NONFINITE,
-                                              FLAG_REFERENCE_DEGENERATE, DEGENERATE_TOL,
-                                              _edge_matrix, polar_2x2, principal_2x2)
+                                              FLAG_REFERENCE_DEGENERATE, polar_2x2, principal_2x2)
+from clothtool.geometry import DEGENERATE_TOL, tangent_edge_matrix
 
 
 @njit(cache=True, inline="always")
@@ -45,8 +45,8 @@ def face_fields3(x_ref, x_def, faces, tol, F3, R3, U3, stretch3, directions3, fl
     """
     for t in prange(faces.shape[0]):
         i0, i1, i2 = faces[t, 0], faces[t, 1], faces[t, 2]
-        a, b, c, r1x, r1y, r1z, r2x, r2y, r2z, ref = _edge_matrix(x_ref, i0, i1, i2, tol)
-        ad, bd, cd, d1x, d1y, d1z, d2x, d2y, d2z, dfm = _edge_matrix(x_def, i0, i1, i2, tol)
+        a, b, c, r1x, r1y, r1z, r2x, r2y, r2z, ref = tangent_edge_matrix(x_ref, i0, i1, i2, tol)
+        ad, bd, cd, d1x, d1y, d1z, d2x, d2y, d2z, dfm = tangent_edge_matrix(x_def, i0, i1, i2, tol)
         flag = (ref | dfm) & FLAG_NONFINITE
         if ref == FLAG_DEFORMED_DEGENERATE:
             flag |= FLAG_REFERENCE_DEGENERATE

@@ -1,6 +1,6 @@
 """The 3D (Kabsch) variant of the deformation analysis (spec §3): numba kernels, float64.
 
-Per vertex, over the vertex and its one-ring (:func:`clothtool.analysis.topology.one_ring`),
+Per vertex, over the vertex and its one-ring (:func:`clothtool.geometry.one_ring`),
 each set centred on its own mean, with reference points p and deformed points q:
 
     H = Σ p qᵀ,   rotation = argmin over proper rotations R of Σ‖R p − q‖²   (Kabsch 1976)

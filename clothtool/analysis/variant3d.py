@@ -19,7 +19,7 @@ from clothtool.analysis.dihedral import dihedral_fields
 from clothtool.analysis.face3d import face_fields3
 from clothtool.analysis.fields import NAMES_3D, REGISTRY
 from clothtool.analysis.kabsch import vertex_fields
-from clothtool.analysis.topology import interior_edges, one_ring
+from clothtool.geometry import hinges, one_ring
 from clothtool.io.h5 import create_pair_dataset
 
 SHAPES = {f.key: f.shape for f in REGISTRY if f.kernel != "2d"}
@@ -42,7 +42,8 @@ class Variant3D:
         if "vertex" in self.groups:
             self.offsets, self.neighbours = one_ring(faces, n_vertices)
         if "edge" in self.groups:
-            self.edges, self.opposite = interior_edges(faces, n_vertices)
+            hinge, _ = hinges(faces, n_vertices)
+            self.edges, self.opposite = np.ascontiguousarray(hinge[:, :2]), np.ascontiguousarray(hinge[:, 2:])
             self.sizes["edge"] = len(self.edges)
 
     def _shape(self, key):

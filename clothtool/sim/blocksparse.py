@@ -26,7 +26,7 @@ from numba import njit
 
 from clothtool.sim.filter import PINNED, apply_filter
 from clothtool.sim.multigrid import setup_levels, vcycle
-from clothtool.sim.vec3 import inverse3
+from clothtool.vec3 import inverse3
 
 
 class BlockPattern:

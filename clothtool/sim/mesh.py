@@ -11,6 +11,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from clothtool.errors import InputError
+from clothtool.geometry import DEGENERATE_TOL, tangent_edge_matrices
 
 PLANE_AXES = {"xy": (0, 1), "xz": (0, 2), "yz": (1, 2)}
 
@@ -85,44 +86,11 @@ def rest_edge_matrices(mesh):
 
     From the uv coordinates when present (so that the columns of F = D_s D_m⁻¹ are
     the warp and weft directions w_u, w_v of Baraff–Witkin); otherwise in each
-    rest triangle's tangent frame t1 = e1/‖e1‖, t2 = n × t1 (spec §2).
+    rest triangle's tangent frame (:func:`clothtool.geometry.tangent_edge_matrices`).
     """
     f = mesh.faces
     if mesh.uv is not None:
         p = mesh.uv[f]  # (M, 3, 2)
         return np.stack([p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]], axis=2)
-    x = mesh.rest3d[f]
-    e1, e2 = x[:, 1] - x[:, 0], x[:, 2] - x[:, 0]
-    n = np.cross(e1, e2)
-    len1 = np.linalg.norm(e1, axis=1)
-    t1 = e1 / np.where(len1 > 0, len1, 1.0)[:, None]
-    nn = np.linalg.norm(n, axis=1)
-    t2 = np.cross(n / np.where(nn > 0, nn, 1.0)[:, None], t1)
-    dm = np.empty((len(f), 2, 2))
-    dm[:, 0, 0] = len1
-    dm[:, 1, 0] = 0.0
-    dm[:, 0, 1] = np.einsum("ij,ij->i", t1, e2)
-    dm[:, 1, 1] = np.einsum("ij,ij->i", t2, e2)
+    dm, _ = tangent_edge_matrices(np.ascontiguousarray(mesh.rest3d, np.float64), f, DEGENERATE_TOL)
     return dm
-
-
-def hinges(faces, n_vertices):
-    """Interior edges shared by exactly two triangles: rows (i, j, k, l) and their two faces.
-
-    Edge (i, j) is directed as in the first triangle (i, j, k); l is the other
-    triangle's opposite vertex. Edges with one triangle (boundary) or more than
-    two (non-manifold) have no hinge. Returns (hinge (H, 4), hinge_faces (H, 2)).
-    """
-    m = len(faces)
-    a = faces.ravel()
-    b = np.roll(faces, -1, axis=1).ravel()
-    opp = np.roll(faces, -2, axis=1).ravel()
-    key = np.minimum(a, b) * n_vertices + np.maximum(a, b)
-    order = np.argsort(key, kind="stable")
-    key_sorted = key[order]
-    starts = np.flatnonzero(np.r_[True, key_sorted[1:] != key_sorted[:-1]])
-    counts = np.diff(np.r_[starts, 3 * m])
-    two = starts[counts == 2]
-    first, second = order[two], order[two + 1]
-    hinge = np.stack([a[first], b[first], opp[first], opp[second]], axis=1).astype(np.int64)
-    return hinge, np.stack([first // 3, second // 3], axis=1).astype(np.int64)

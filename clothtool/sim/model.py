@@ -15,7 +15,8 @@ from clothtool.errors import InputError
 from clothtool.sim.blocksparse import BlockPattern, scatter_blocks
 from clothtool.sim.filter import FREE, PINNED
 from clothtool.sim.config import Plane, Sphere
-from clothtool.sim.mesh import build_rest_mesh, hinges, rest_edge_matrices
+from clothtool.geometry import hinges
+from clothtool.sim.mesh import build_rest_mesh, rest_edge_matrices
 from clothtool.sim.pins import resolve_pins
 from clothtool.sim.state import State
 
@@ -143,7 +144,8 @@ def build_model(config):
 
 def _bending(mesh, area, material):
     """Hinges and their rest data; empty when bending is off or the mesh has no interior edge."""
-    from clothtool.sim.bending import dihedral_angles, quadratic_weights
+    from clothtool.geometry import dihedral_angles
+    from clothtool.sim.bending import quadratic_weights
 
     empty = (None, np.zeros((0, 4), np.int64), np.zeros(0), np.zeros(0), None)
     if material.bend == 0.0:

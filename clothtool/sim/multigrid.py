@@ -26,7 +26,7 @@ import numpy as np
 from numba import njit
 
 from clothtool.sim.filter import FREE, PINNED, SLIDING
-from clothtool.sim.vec3 import inverse3
+from clothtool.vec3 import inverse3
 
 COARSEST = 48  # nodes at which the hierarchy stops (dense Cholesky of ≤ 3·48 unknowns)
 OMEGA = 0.6  # Jacobi smoothing weight (λmax(D⁻¹A) ≤ 2 for these matrices)

@@ -30,7 +30,7 @@ from clothtool.sim.collide import resolve_collisions
 from clothtool.sim.integrator import fem_elastic_energy
 from clothtool.sim.membrane import EPS, _deformation, membrane_assemble, membrane_element
 from clothtool.sim.solvers.base import SolverBase, StepReport
-from clothtool.sim.vec3 import add, dot, load, scale
+from clothtool.vec3 import add, dot, load, scale
 
 STRETCH_MARGIN = 1.5
 
