@@ -185,7 +185,7 @@ def analyze(inputs, output, reference, uv_scale, fields, dtype, compression, ver
         pairs=pair_slice, vertex_average=vertex_average,
     )
     if not quiet:
-        from clothtool.results.xdmf import xdmf_path
+        from clothtool.analysis.output.xdmf import xdmf_path
 
         click.echo(summary.describe())
         click.echo(f"  for ParaView: {xdmf_path(output)}; overview: clothtool info {output}")

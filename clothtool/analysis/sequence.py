@@ -25,10 +25,10 @@ from clothtool.errors import InputError
 from clothtool.io.frames import FrameReader, discover_frames
 from clothtool.io.h5 import (AtomicH5, PairWriter, check_not_an_input, check_output_path,
                               create_pair_dataset, parse_compression)
-from clothtool.results.extras import PairExtras
-from clothtool.results.slices import parse_pair_slice
-from clothtool.results.vertex_average import parse_vertex_average
-from clothtool.results.xdmf import xdmf_path, xdmf_text
+from clothtool.analysis.output.extras import PairExtras
+from clothtool.analysis.output.slices import parse_pair_slice
+from clothtool.analysis.output.vertex_average import parse_vertex_average
+from clothtool.analysis.output.xdmf import xdmf_path, xdmf_text
 
 REFERENCE_MODES = ("previous", "first", "uv")
 EXTERNAL = -1  # the reference index of pairs against a reference mesh or the uv rest shape
@@ -204,11 +204,11 @@ def analyze_sequence(inputs, output, *, reference="previous", uv_scale=1.0, fiel
     ``kabsch``: add the 3D variant (:mod:`clothtool.analysis.variant3d`); ``fields`` may then
     also name its datasets.
     ``pairs``: 'START:STOP' or (start, stop): compute only that slice of the pairs
-    (:mod:`clothtool.results.slices`). ``vertex_average``: face fields to also store as
+    (:mod:`clothtool.analysis.output.slices`). ``vertex_average``: face fields to also store as
     area-weighted vertex averages ``/vertex/<name>_avg``
-    (:mod:`clothtool.results.vertex_average`). Always stored: ``/frame_vertices`` and
-    ``/summary`` (:mod:`clothtool.results.extras`); ``out.xdmf`` is written beside
-    ``out.h5`` (:mod:`clothtool.results.xdmf`).
+    (:mod:`clothtool.analysis.output.vertex_average`). Always stored: ``/frame_vertices`` and
+    ``/summary`` (:mod:`clothtool.analysis.output.extras`); ``out.xdmf`` is written beside
+    ``out.h5`` (:mod:`clothtool.analysis.output.xdmf`).
     Returns an :class:`AnalysisSummary`. Raises :class:`~clothtool.errors.InputError`
     on bad input, before writing anything.
     """

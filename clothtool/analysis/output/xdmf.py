@@ -95,6 +95,19 @@ def _attribute(h5_name, dataset, p, center):
     return f'<Attribute Name={name} AttributeType="{kind}" Center="{center}">\n{slab}\n</Attribute>'
 
 
+def _attribute_keys(h5):
+    """(dataset path, XDMF center) of the face and vertex datasets in ``h5``: the registry's
+    fields and their vertex averages in registry order, then any others."""
+    from clothtool.analysis.fields import REGISTRY
+    from clothtool.analysis.output.vertex_average import SUFFIX
+
+    centers = dict(CENTERS)
+    known = [f.key for f in REGISTRY] + [f"vertex/{f.name}{SUFFIX}" for f in REGISTRY if f.averageable]
+    found = [f"{group}/{name}" for group in centers if group in h5 for name in h5[group]]
+    keys = [k for k in known if k in found] + [k for k in found if k not in known]
+    return [(key, centers[key.split("/")[0]]) for key in keys]
+
+
 def xdmf_text(h5, h5_name):
     """The XDMF document of an open result whose file is called ``h5_name``."""
     if "frame_vertices" not in h5:
@@ -103,9 +116,8 @@ def xdmf_text(h5, h5_name):
     faces, positions, pairs = h5["mesh/faces"], h5["frame_vertices"], h5["pairs"][:]
     n_pairs, m, n = len(pairs), faces.shape[0], positions.shape[1]
     counts = {"face": m, "vertex": n}
-    fields = [(h5[group][name], center) for group, center in CENTERS if group in h5
-              for name in h5[group]
-              if h5[group][name].ndim >= 2 and h5[group][name].shape[:2] == (n_pairs, counts[group])]
+    fields = [(h5[key], center) for key, center in _attribute_keys(h5)
+              if h5[key].ndim >= 2 and h5[key].shape[:2] == (n_pairs, counts[key.split("/")[0]])]
     f_number, f_precision = _number_type(faces.dtype)
     topology = (f'<Topology TopologyType="Triangle" NumberOfElements="{m}">\n'
                 f'  <DataItem Dimensions="{m} 3" NumberType="{f_number}" Precision="{f_precision}" '
