@@ -198,7 +198,7 @@ Examples:
   clothtool info out.h5 --csv | awk -F, 'NR > 1 && $5 > 1.05'      pairs with λ1 median > 1.05
 
 \b
-CSV columns: pair,reference,deformed, lambda1|lambda2|J _p5,_p50,_p95, compressed,stretched
+CSV columns: pair,reference,deformed, lambda1|lambda2|area_ratio _p5,_p50,_p95, compressed,stretched
 (fractions of triangles with λ2 < 1, λ1 > 1), flagged and per-flag counts.
 
 """ + EXIT_CODES_HELP
