@@ -26,7 +26,7 @@ import numpy as np
 from numba import njit, prange
 
 from clothtool import numba_setup  # noqa: F401  (threading layer, before the first kernel)
-from clothtool.analysis.fields import FIELDS_2D, NAMES_2D
+from clothtool.analysis.fields import FIELDS_2D, NAMES_2D, parse_fields
 from clothtool.geometry import DEGENERATE, DEGENERATE_TOL, NONFINITE, tangent_edge_matrix
 
 FLAG_REFERENCE_DEGENERATE = np.uint8(1)
@@ -347,7 +347,8 @@ def deformation_fields_and_next_rest(x, faces, dinv, basis, ref_flags, tol, star
 
 def analyze_pair(reference, deformed, faces, *, fields=FIELDS, uv=None, uv_scale=1.0,
                  dtype=np.float64, tol=DEGENERATE_TOL):
-    """Per-triangle fields of one pair, as a dict name → array.
+    """Per-triangle fields of one pair, as a dict name → array (``fields``: names or a
+    string as ``analyze_sequence`` takes; default every 2D field).
 
     ``reference``/``deformed``: (N, 3) positions; with ``uv`` (N, 2) the rest shape is
     the texture coordinates times ``uv_scale`` and ``reference`` is ignored.
@@ -357,7 +358,7 @@ def analyze_pair(reference, deformed, faces, *, fields=FIELDS, uv=None, uv_scale
         ref = reference_from_uv(np.ascontiguousarray(uv, dtype=np.float64), faces, float(uv_scale), tol)
     else:
         ref = reference_from_positions(np.ascontiguousarray(reference, dtype=np.float64), faces, tol)
-    plan = KernelPlan(len(faces), fields)
+    plan = KernelPlan(len(faces), parse_fields(fields) if isinstance(fields, str) else fields)
     out, out_flags, views = plan.allocate(dtype)
     deformation_fields(np.ascontiguousarray(deformed, dtype=np.float64), faces, *ref, tol,
                        plan.starts, plan.needs, out, out_flags)
