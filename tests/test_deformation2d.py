@@ -238,3 +238,12 @@ def test_rotation_invariance_of_the_reference_too(rng):
     b = analyze_pair(vertices @ Q.T, deformed, faces)
     np.testing.assert_allclose(a["stretch"], b["stretch"], atol=1e-12)
     np.testing.assert_allclose(a["C"], b["C"], atol=1e-12)
+
+
+@pytest.mark.parametrize("stretch", [(1.5, 1.0), (1.2, 1.2), (0.8, 1.3)])
+def test_thickness_is_the_incompressible_third_stretch(stretch):
+    """Stretching a unit right triangle by (sx, sy): λ3 = 1/(sx·sy)."""
+    x = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], float)
+    r = analyze_pair(x, x * [*stretch, 1.0], np.array([[0, 1, 2]]), fields="thickness,flags")
+    assert set(r) == {"thickness", "flags"}
+    np.testing.assert_allclose(r["thickness"][0], 1.0 / (stretch[0] * stretch[1]), rtol=1e-14)

@@ -176,6 +176,7 @@ _N_SLOTS = len(FIELDS_2D)
 S_F, S_C, S_U, S_R = _SLOT["F"], _SLOT["C"], _SLOT["U"], _SLOT["R"]
 S_STRAIN, S_STRETCH, S_DIRECTIONS = _SLOT["strain"], _SLOT["stretch"], _SLOT["directions"]
 S_AREA_RATIO, S_FLAGS = _SLOT["area_ratio"], _SLOT["flags"]
+S_THICKNESS = _SLOT["thickness"]
 
 
 class KernelPlan:
@@ -242,6 +243,12 @@ def _write_area_ratio(out, i, absdet):
 
 
 @njit(cache=True, inline="always")
+def _write_thickness(out, i, absdet):
+    """λ3 = 1/(λ1λ2) = 1/|det F| (volume kept)."""
+    out[i] = 1.0 / absdet
+
+
+@njit(cache=True, inline="always")
 def _write_R(out, i, r00, r01, r10, r11):
     _put4(out, i, r00, r01, r10, r11)
 
@@ -301,6 +308,8 @@ def _triangle_fields(k, a, b, c, flag, dinv, basis, starts, needs, out, out_flag
     absdet = abs(f00 * f11 - f01 * f10)
     if starts[S_AREA_RATIO] >= 0:
         _write_area_ratio(out, starts[S_AREA_RATIO] + k, absdet)
+    if starts[S_THICKNESS] >= 0:
+        _write_thickness(out, starts[S_THICKNESS] + k, absdet)
     if not needs & NEED_POLAR:
         return
     r00, r01, r10, r11, u00, u01, u11 = polar_2x2(f00, f01, f10, f11)

@@ -71,6 +71,8 @@ REGISTRY = (
           averageable=True, summary=("area_ratio",)),
     Field("flags", "face", (), "2d", "bit 0 reference degenerate, bit 1 deformed degenerate, "
           "bit 2 non-finite input, bit 3 uv triangle flipped", integer=True, summary=("flags",)),
+    Field("thickness", "face", (), "2d", "thickness stretch λ3 = 1/(λ1λ2) of an incompressible "
+          "sheet", averageable=True, extended=True),
     # The 3D variant (analyze --kabsch): clothtool.analysis.variant3d.
     Field("rotation", "vertex", (3, 3), "kabsch", "Kabsch rotation of the vertex's one-ring"),
     Field("angle", "vertex", (), "kabsch", "angle of that rotation (rad)"),
