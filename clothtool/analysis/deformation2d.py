@@ -177,6 +177,9 @@ S_F, S_C, S_U, S_R = _SLOT["F"], _SLOT["C"], _SLOT["U"], _SLOT["R"]
 S_STRAIN, S_STRETCH, S_DIRECTIONS = _SLOT["strain"], _SLOT["stretch"], _SLOT["directions"]
 S_AREA_RATIO, S_FLAGS = _SLOT["area_ratio"], _SLOT["flags"]
 S_THICKNESS = _SLOT["thickness"]
+S_ALMANSI, S_HENCKY, S_ENGINEERING = _SLOT["almansi"], _SLOT["hencky"], _SLOT["engineering"]
+S_PRINCIPAL_STRAIN, S_MAX_SHEAR = _SLOT["principal_strain"], _SLOT["max_shear"]
+S_VON_MISES, S_DIRECTIONS_DEFORMED = _SLOT["von_mises"], _SLOT["directions_deformed"]
 
 
 class KernelPlan:
@@ -249,6 +252,59 @@ def _write_thickness(out, i, absdet):
 
 
 @njit(cache=True, inline="always")
+def _write_almansi(out, i, f00, f01, f10, f11, absdet):
+    """e = (I − B⁻¹)/2 with B = F·Fᵀ, B⁻¹ = adj(B)/det F² (Bonet & Wood, Nonlinear Continuum
+    Mechanics, eq. 3.11)."""
+    b00 = f00 * f00 + f01 * f01
+    b01 = f00 * f10 + f01 * f11
+    b11 = f10 * f10 + f11 * f11
+    d = absdet * absdet
+    _put4(out, i, 0.5 * (1.0 - b11 / d), 0.5 * b01 / d, 0.5 * b01 / d, 0.5 * (1.0 - b00 / d))
+
+
+@njit(cache=True, inline="always")
+def _write_engineering(out, i, u00, u01, u11):
+    """Biot strain U − I."""
+    _put4(out, i, u00 - 1.0, u01, u01, u11 - 1.0)
+
+
+@njit(cache=True, inline="always")
+def _write_hencky(out, i, lam1, lam2, v0, v1):
+    """ln U = ln λ1 v1v1ᵀ + ln λ2 v2v2ᵀ with v1 = (v0, v1), v2 = (−v1, v0)."""
+    l1, l2 = np.log(lam1), np.log(lam2)
+    h01 = (l1 - l2) * v0 * v1
+    _put4(out, i, l1 * v0 * v0 + l2 * v1 * v1, h01, h01, l1 * v1 * v1 + l2 * v0 * v0)
+
+
+@njit(cache=True, inline="always")
+def _write_principal_strain(out, i, lam1, lam2):
+    out[i], out[i + 1] = 0.5 * (lam1 * lam1 - 1.0), 0.5 * (lam2 * lam2 - 1.0)
+
+
+@njit(cache=True, inline="always")
+def _write_max_shear(out, i, lam1, lam2):
+    """(E1 − E2)/2 = (λ1² − λ2²)/4."""
+    out[i] = 0.25 * (lam1 - lam2) * (lam1 + lam2)
+
+
+@njit(cache=True, inline="always")
+def _write_von_mises(out, i, lam1, lam2):
+    """√(2/3 (ε1² + ε2² + ε3²)), εk = ln λk, ε3 = −(ε1 + ε2) (incompressible)."""
+    e1, e2 = np.log(lam1), np.log(lam2)
+    e3 = -(e1 + e2)
+    out[i] = np.sqrt((2.0 / 3.0) * (e1 * e1 + e2 * e2 + e3 * e3))
+
+
+@njit(cache=True, inline="always")
+def _write_directions_deformed(out, i, r00, r01, r10, r11, v0, v1, d1x, d1y, d1z, d2x, d2y, d2z):
+    """Rows R·v1 and R·v2 (= F·vk/λk) in 3D through the deformed tangent basis (d1, d2)."""
+    p, q = r00 * v0 + r01 * v1, r10 * v0 + r11 * v1  # R·(v0, v1)
+    s, t = -r00 * v1 + r01 * v0, -r10 * v1 + r11 * v0  # R·(−v1, v0)
+    out[i], out[i + 1], out[i + 2] = p * d1x + q * d2x, p * d1y + q * d2y, p * d1z + q * d2z
+    out[i + 3], out[i + 4], out[i + 5] = s * d1x + t * d2x, s * d1y + t * d2y, s * d1z + t * d2z
+
+
+@njit(cache=True, inline="always")
 def _write_R(out, i, r00, r01, r10, r11):
     _put4(out, i, r00, r01, r10, r11)
 
@@ -282,8 +338,10 @@ def _fill_nan(k, starts, out):
 
 
 @njit(cache=True, inline="always")
-def _triangle_fields(k, a, b, c, flag, dinv, basis, starts, needs, out, out_flags):
-    """The requested fields of triangle k from its deformed edge matrix [[a, b], [0, c]]."""
+def _triangle_fields(k, a, b, c, d1x, d1y, d1z, d2x, d2y, d2z, flag, dinv, basis, starts, needs,
+                     out, out_flags):
+    """The requested fields of triangle k from its deformed edge matrix [[a, b], [0, c]] and
+    deformed tangent basis (d1, d2)."""
     if starts[S_FLAGS] >= 0:
         out_flags[starts[S_FLAGS] + k] = flag
     if flag & NAN_FLAGS:
@@ -310,6 +368,8 @@ def _triangle_fields(k, a, b, c, flag, dinv, basis, starts, needs, out, out_flag
         _write_area_ratio(out, starts[S_AREA_RATIO] + k, absdet)
     if starts[S_THICKNESS] >= 0:
         _write_thickness(out, starts[S_THICKNESS] + k, absdet)
+    if starts[S_ALMANSI] >= 0:
+        _write_almansi(out, starts[S_ALMANSI] + 4 * k, f00, f01, f10, f11, absdet)
     if not needs & NEED_POLAR:
         return
     r00, r01, r10, r11, u00, u01, u11 = polar_2x2(f00, f01, f10, f11)
@@ -317,6 +377,8 @@ def _triangle_fields(k, a, b, c, flag, dinv, basis, starts, needs, out, out_flag
         _write_R(out, starts[S_R] + 4 * k, r00, r01, r10, r11)
     if starts[S_U] >= 0:
         _write_U(out, starts[S_U] + 4 * k, u00, u01, u11)
+    if starts[S_ENGINEERING] >= 0:
+        _write_engineering(out, starts[S_ENGINEERING] + 4 * k, u00, u01, u11)
     if not needs & NEED_PRINCIPAL:
         return
     lam1, lam2, v0, v1 = principal_2x2(u00, u01, u11, absdet)
@@ -324,6 +386,17 @@ def _triangle_fields(k, a, b, c, flag, dinv, basis, starts, needs, out, out_flag
         _write_stretch(out, starts[S_STRETCH] + 2 * k, lam1, lam2)
     if starts[S_DIRECTIONS] >= 0:
         _write_directions(out, starts[S_DIRECTIONS] + 6 * k, v0, v1, basis, k)
+    if starts[S_HENCKY] >= 0:
+        _write_hencky(out, starts[S_HENCKY] + 4 * k, lam1, lam2, v0, v1)
+    if starts[S_PRINCIPAL_STRAIN] >= 0:
+        _write_principal_strain(out, starts[S_PRINCIPAL_STRAIN] + 2 * k, lam1, lam2)
+    if starts[S_MAX_SHEAR] >= 0:
+        _write_max_shear(out, starts[S_MAX_SHEAR] + k, lam1, lam2)
+    if starts[S_VON_MISES] >= 0:
+        _write_von_mises(out, starts[S_VON_MISES] + k, lam1, lam2)
+    if starts[S_DIRECTIONS_DEFORMED] >= 0:
+        _write_directions_deformed(out, starts[S_DIRECTIONS_DEFORMED] + 6 * k, r00, r01, r10, r11,
+                                   v0, v1, d1x, d1y, d1z, d2x, d2y, d2z)
 
 
 # ---------------------------------------------------------------- the kernels
@@ -333,10 +406,10 @@ def deformation_fields(x, faces, dinv, basis, ref_flags, tol, starts, needs, out
     data (D_r⁻¹, basis, flags), into the buffers of a :class:`KernelPlan` (``starts``,
     ``needs``). ``out`` may be float32 or float64; all arithmetic is float64."""
     for k in prange(faces.shape[0]):
-        a, b, c, _, _, _, _, _, _, flag = tangent_edge_matrix(
+        a, b, c, t1x, t1y, t1z, t2x, t2y, t2z, flag = tangent_edge_matrix(
             x, faces[k, 0], faces[k, 1], faces[k, 2], tol)
-        _triangle_fields(k, a, b, c, flag | ref_flags[k], dinv, basis, starts, needs, out,
-                         out_flags)
+        _triangle_fields(k, a, b, c, t1x, t1y, t1z, t2x, t2y, t2z, flag | ref_flags[k], dinv,
+                         basis, starts, needs, out, out_flags)
 
 
 @njit(cache=True, parallel=True, nogil=True)
@@ -350,8 +423,8 @@ def deformation_fields_and_next_rest(x, faces, dinv, basis, ref_flags, tol, star
             x, faces[k, 0], faces[k, 1], faces[k, 2], tol)
         _store_rest(k, a, b, c, t1x, t1y, t1z, t2x, t2y, t2z, flag,
                     next_dinv, next_basis, next_flags)
-        _triangle_fields(k, a, b, c, flag | ref_flags[k], dinv, basis, starts, needs, out,
-                         out_flags)
+        _triangle_fields(k, a, b, c, t1x, t1y, t1z, t2x, t2y, t2z, flag | ref_flags[k], dinv,
+                         basis, starts, needs, out, out_flags)
 
 
 def analyze_pair(reference, deformed, faces, *, fields=FIELDS, uv=None, uv_scale=1.0,

@@ -73,6 +73,21 @@ REGISTRY = (
           "bit 2 non-finite input, bit 3 uv triangle flipped", integer=True, summary=("flags",)),
     Field("thickness", "face", (), "2d", "thickness stretch λ3 = 1/(λ1λ2) of an incompressible "
           "sheet", averageable=True, extended=True),
+    Field("almansi", "face", (2, 2), "2d", "Euler–Almansi e = (I − B⁻¹)/2, B = F·Fᵀ, in the "
+          "deformed tangent frame", averageable=True, extended=True),
+    Field("hencky", "face", (2, 2), "2d", "logarithmic strain ln U = Σ ln λk vk vkᵀ, reference "
+          "tangent frame", needs=("principal",), averageable=True, extended=True),
+    Field("engineering", "face", (2, 2), "2d", "Biot strain U − I, reference tangent frame",
+          needs=("polar",), averageable=True, extended=True),
+    Field("principal_strain", "face", (2,), "2d", "Green principal strains (λk² − 1)/2, major "
+          "first", needs=("principal",), averageable=True, extended=True),
+    Field("max_shear", "face", (), "2d", "(E1 − E2)/2 of the Green principal strains (tensor "
+          "shear)", needs=("principal",), averageable=True, extended=True),
+    Field("von_mises", "face", (), "2d", "equivalent true strain √(2/3 Σ εk²), εk = ln λk, "
+          "ε3 = −(ε1 + ε2)", needs=("principal",), averageable=True, extended=True),
+    Field("directions_deformed", "face", (2, 3), "2d", "unit principal directions in the "
+          "deformed configuration (R·vk = F·vk/λk), row k for λk, sign free",
+          needs=("principal",), extended=True),
     # The 3D variant (analyze --kabsch): clothtool.analysis.variant3d.
     Field("rotation", "vertex", (3, 3), "kabsch", "Kabsch rotation of the vertex's one-ring"),
     Field("angle", "vertex", (), "kabsch", "angle of that rotation (rad)"),
