@@ -19,16 +19,16 @@ from clothtool.analysis.deformation2d import (DEGENERATE_TOL, KernelPlan, alloca
                                               deformation_fields,
                                               deformation_fields_and_next_rest,
                                               reference_from_positions, reference_from_uv)
+from clothtool.analysis.output.extras import PairExtras
+from clothtool.analysis.output.slices import parse_pair_slice
+from clothtool.analysis.output.vertex_average import parse_vertex_average
+from clothtool.analysis.output.xdmf import xdmf_path, xdmf_text
 from clothtool.analysis.fields import NAMES_2D, SUMMARY_SOURCES, parse_fields
 from clothtool.analysis.fields import field as registry_field
 from clothtool.errors import InputError
 from clothtool.io.frames import FrameReader, discover_frames
 from clothtool.io.h5 import (AtomicH5, PairWriter, check_not_an_input, check_output_path,
                               create_pair_dataset, parse_compression)
-from clothtool.analysis.output.extras import PairExtras
-from clothtool.analysis.output.slices import parse_pair_slice
-from clothtool.analysis.output.vertex_average import parse_vertex_average
-from clothtool.analysis.output.xdmf import xdmf_path, xdmf_text
 
 REFERENCE_MODES = ("previous", "first", "uv")
 EXTERNAL = -1  # the reference index of pairs against a reference mesh or the uv rest shape
