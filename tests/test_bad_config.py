@@ -15,10 +15,8 @@ import time
 import pytest
 from click.testing import CliRunner
 
-pytest.importorskip("clothtool.sim.config")
-
-from clothtool.cli import main  # noqa: E402
-from clothtool.io.ply import read_ply  # noqa: E402
+from clothtool.cli import main
+from clothtool.io.ply import read_ply
 
 GOOD = """\
 mesh:

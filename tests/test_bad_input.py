@@ -426,10 +426,10 @@ def disk_full_while_writing(tmp):
 
 @case
 def out_of_memory(tmp):
-    def huge(m, fields, store):
+    def huge(self, dtype):
         raise MemoryError("Unable to allocate 74.5 GiB for an array")
     return Case([str(sequence(tmp))], "out of memory: Unable to allocate 74.5 GiB",
-                patch={"clothtool.analysis.sequence.allocate_fields": huge})
+                patch={"clothtool.analysis.deformation2d.KernelPlan.allocate": huge})
 
 
 @case
@@ -437,7 +437,7 @@ def internal_bug(tmp):
     def bug(*args):
         raise ZeroDivisionError("a bug in a kernel")
     return Case([str(sequence(tmp))], "ZeroDivisionError: a bug in a kernel", code=1,
-                patch={"clothtool.analysis.sequence.deformation_fields": bug})
+                patch={"clothtool.analysis.sequence.deformation_fields_and_next_rest": bug})
 
 
 @case

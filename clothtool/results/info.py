@@ -6,34 +6,18 @@ import os
 
 import numpy as np
 
-from clothtool.errors import InputError
-from clothtool.results.summary import COLUMNS, FLAG_BITS, INT_COLUMNS, TOL, read_summary
+from clothtool.analysis.output.summary import COLUMNS, FLAG_BITS, INT_COLUMNS, TOL
+from clothtool.io.result import open_result, read_summary
 
 REFERENCE_PAIRS = {"previous": "pairs (i, i+1)", "first": "pairs (0, i)", "uv": "uv rest shape"}
 TABLE = (("pair", "pair", "{:d}"), ("reference", "ref", "{:d}"), ("deformed", "def", "{:d}"),
          ("lambda1_p5", "λ1 p5", "{:.4f}"), ("lambda1_p50", "λ1 p50", "{:.4f}"),
          ("lambda1_p95", "λ1 p95", "{:.4f}"), ("lambda2_p5", "λ2 p5", "{:.4f}"),
          ("lambda2_p50", "λ2 p50", "{:.4f}"), ("lambda2_p95", "λ2 p95", "{:.4f}"),
-         ("J_p5", "J p5", "{:.4f}"), ("J_p50", "J p50", "{:.4f}"), ("J_p95", "J p95", "{:.4f}"),
+         ("area_ratio_p5", "area p5", "{:.4f}"), ("area_ratio_p50", "area p50", "{:.4f}"),
+         ("area_ratio_p95", "area p95", "{:.4f}"),
          ("compressed", "compr.", "{:.1%}"), ("stretched", "stretch.", "{:.1%}"),
          ("flagged", "flagged", "{:d}"))
-
-
-def open_result(path):
-    """An open ``h5py.File`` of a clothtool result, or InputError naming the file."""
-    import h5py
-
-    path = os.fspath(path)
-    if not os.path.isfile(path):
-        raise InputError(f"{path}: no such file")
-    try:
-        h5 = h5py.File(path, "r")
-    except OSError:
-        raise InputError(f"{path}: not an HDF5 file") from None
-    if "pairs" not in h5 or "mesh" not in h5:
-        h5.close()
-        raise InputError(f"{path}: not a clothtool analysis result (no /pairs or /mesh)")
-    return h5
 
 
 def _text(value):
@@ -69,7 +53,7 @@ def describe(path):
     flagged = ", ".join(f"{int(summary[name].sum())} {name.replace('_', ' ')}"
                         for name, _ in FLAG_BITS)
     lines.append(f"  flagged:   {int(summary['flagged'].sum())} triangle-pairs ({flagged})")
-    lines += ["", "per pair: percentiles of the principal stretches λ1 ≥ λ2 and the area ratio J; "
+    lines += ["", "per pair: percentiles of the principal stretches λ1 ≥ λ2 and the area ratio λ1λ2 (area); "
               f"compr./stretch. = fraction of triangles with λ2 < 1 − {TOL:g} / λ1 > 1 + {TOL:g}"]
     lines.append(_table(summary))
     return "\n".join(lines)
@@ -86,7 +70,7 @@ def _table(summary):
 
 def summary_csv(path):
     """The ``/summary`` of the result at ``path`` as CSV text: a header row of
-    :data:`~clothtool.results.summary.COLUMNS`, then one row per pair (floats in full
+    :data:`~clothtool.analysis.output.summary.COLUMNS`, then one row per pair (floats in full
     precision)."""
     with open_result(path) as h5:
         summary = read_summary(h5)

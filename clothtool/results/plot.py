@@ -1,8 +1,8 @@
 """``clothtool plot``: one figure that shows a result at a glance (matplotlib, optional extra).
 
 Four panels: (1) the 5th/50th/95th percentiles of the principal stretches λ1, λ2 and
-(2) of the area ratio J against the deformed frame, from ``/summary``; (3) histograms of
-λ1, λ2 and J over the triangles of the pairs (at most :data:`HISTOGRAM_PAIRS` pairs, evenly
+(2) of the area ratio λ1λ2 against the deformed frame, from ``/summary``; (3) histograms of
+λ1, λ2 and the area ratio over the triangles of the pairs (at most :data:`HISTOGRAM_PAIRS` pairs, evenly
 spaced); (4) one field of one pair drawn on its deformed mesh, projected on the mesh's
 best-fit plane (the two leading right-singular vectors of the centred positions).
 """
@@ -14,8 +14,7 @@ import numpy as np
 from clothtool.errors import InputError
 from clothtool.io.atomic import atomic_path
 from clothtool.results.export import field_values
-from clothtool.results.info import open_result
-from clothtool.results.summary import read_summary
+from clothtool.io.result import open_result, read_summary
 
 HISTOGRAM_PAIRS = 100
 MISSING = "clothtool plot needs matplotlib: pip install 'clothtool[plot]'"
@@ -55,7 +54,7 @@ def _histogram_data(h5):
         s = np.concatenate([h5["face/stretch"][p] for p in picks])
         out["λ1"], out["λ2"] = s[:, 0], s[:, 1]
     if "area_ratio" in h5.get("face", {}):
-        out["J"] = np.concatenate([h5["face/area_ratio"][p] for p in picks])
+        out["area ratio"] = np.concatenate([h5["face/area_ratio"][p] for p in picks])
     return {k: v[np.isfinite(v)] for k, v in out.items()}, len(picks)
 
 
@@ -103,9 +102,9 @@ def plot_result(h5_path, output, *, pair=None, field=None, component=0, dpi=120)
     ax.set(xlabel="deformed frame", ylabel="principal stretch", title="Principal stretches per pair")
     ax.legend(fontsize=8)
     ax = axes[0, 1]
-    _band(ax, t, summary, "J", "J", "tab:green")
+    _band(ax, t, summary, "area_ratio", "area ratio", "tab:green")
     ax.axhline(1.0, color="k", lw=0.6)
-    ax.set(xlabel="deformed frame", ylabel="area ratio J = λ1·λ2", title="Area ratio per pair")
+    ax.set(xlabel="deformed frame", ylabel="area ratio λ1·λ2", title="Area ratio per pair")
     ax.legend(fontsize=8)
 
     ax = axes[1, 0]

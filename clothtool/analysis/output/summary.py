@@ -1,30 +1,36 @@
-"""The per-pair summary stored as ``/summary`` at analysis time and shown by ``clothtool info``.
+"""The per-pair summary stored as ``/summary`` at analysis time and shown by ``clothtool info``
+(read back by :func:`clothtool.io.result.read_summary`).
 
 ``/summary`` is a group of (P,) datasets, one per column, in the order of its ``columns``
 attribute (:data:`COLUMNS`):
 
 - ``pair``, ``reference``, ``deformed``: the global pair index and its frames (as ``/pairs``)
-- ``lambda1_p5 … lambda1_p95``, ``lambda2_p5 …``, ``J_p5 …``: 5th/50th/95th percentiles of
-  the principal stretches λ1 ≥ λ2 and the area ratio J = λ1λ2 over the pair's triangles
-  (flagged triangles, whose values are NaN, excluded; NaN if none is left)
+- ``lambda1_p5 … lambda1_p95``, ``lambda2_p5 …``, ``area_ratio_p5 …``: 5th/50th/95th
+  percentiles of the principal stretches λ1 ≥ λ2 and the area ratio λ1λ2 over the pair's
+  triangles (flagged triangles, whose values are NaN, excluded; NaN if none is left); the
+  quantities come from the registry's ``summary`` entries (:mod:`clothtool.analysis.fields`).
+  Results written before these names call the area-ratio columns ``J_p5 …``; the old names
+  stay readable as links (:data:`ALIASES`).
 - ``compressed``: fraction of those triangles with λ2 < 1 − TOL, in compression along
   at least one direction; ``stretched``: fraction with λ1 > 1 + TOL. TOL = 1e-5 (attribute
   ``tolerance``) keeps the round-off of float32 input coordinates (≈1e-6 of an edge on a
   sheet 20 edges wide) out of both, so a rigid motion counts as neither.
 - ``flagged``: triangles with any flag bit; ``reference_degenerate``,
-  ``deformed_degenerate``, ``nonfinite``, ``uv_flipped``: triangles with each bit (spec §2).
+  ``deformed_degenerate``, ``nonfinite``, ``uv_flipped``: triangles with each bit of ``/face/flags``.
 """
 
 import numpy as np
 
-from clothtool.errors import InputError
+from clothtool.analysis.fields import FIELDS_2D
+from clothtool.io.result import SUMMARY_ALIASES as ALIASES
 
 PERCENTILES = (5, 50, 95)
 TOL = 1e-5
+QUANTITIES = tuple(q for f in FIELDS_2D if not f.integer for q in f.summary)  # λ1, λ2, area
 FLAG_BITS = (("reference_degenerate", 1), ("deformed_degenerate", 2), ("nonfinite", 4),
              ("uv_flipped", 8))
 COLUMNS = ("pair", "reference", "deformed",
-           *(f"{q}_p{p}" for q in ("lambda1", "lambda2", "J") for p in PERCENTILES),
+           *(f"{q}_p{p}" for q in QUANTITIES for p in PERCENTILES),
            "compressed", "stretched", "flagged", *(name for name, _ in FLAG_BITS))
 INT_COLUMNS = {"pair", "reference", "deformed", "flagged", *(name for name, _ in FLAG_BITS)}
 
@@ -38,11 +44,11 @@ def pair_summary(stretch, area_ratio, flags):
     else:
         valid = np.isfinite(stretch).all(axis=1)
         l1, l2, j = stretch[valid, 0], stretch[valid, 1], area_ratio[valid]
-    from clothtool.results.percentiles import percentiles  # numba: not for `clothtool info`
+    from clothtool.analysis.output.percentiles import percentiles  # numba: not for `clothtool info`
 
     row = {}
     qs = np.array(PERCENTILES, np.float64)
-    for name, q in (("lambda1", l1), ("lambda2", l2), ("J", j)):
+    for name, q in (("lambda1", l1), ("lambda2", l2), ("area_ratio", j)):
         values = percentiles(np.ascontiguousarray(q), qs)  # = np.percentile, 4× faster
         row.update({f"{name}_p{p}": float(v) for p, v in zip(PERCENTILES, values)})
     n = len(l1)  # unflagged triangles
@@ -77,11 +83,14 @@ class SummaryWriter:
         """Write the columns (P values each: small, kept in memory until the end)."""
         for name in COLUMNS:
             self.group.create_dataset(name, data=self.data[name])
+        add_aliases(self.group)
 
 
-def read_summary(h5):
-    """Columns of ``/summary`` of an open result as a dict name → (P,) array."""
-    if "summary" not in h5:
-        raise InputError(f"{h5.filename}: no /summary in this file; is it a clothtool analyze result?")
-    group = h5["summary"]
-    return {name: group[name][:] for name in group.attrs["columns"]}
+def add_aliases(group):
+    """Soft links ``J_p…`` → ``area_ratio_p…`` in a ``/summary`` group, so that scripts that
+    read the old column names keep working."""
+    import h5py
+
+    for old, new in ALIASES.items():
+        if new in group and old not in group:
+            group[old] = h5py.SoftLink(f"{group.name}/{new}")
