@@ -169,10 +169,19 @@ NEED_C = 1  # C = FᵀF
 NEED_POLAR = 2  # F = R·U
 NEED_PRINCIPAL = 4  # λ1, λ2 and the eigenvectors of U
 _NEED_BITS = {"C": NEED_C, "polar": NEED_POLAR, "principal": NEED_PRINCIPAL | NEED_POLAR}
-_SLOT = {f.name: s for s, f in enumerate(FIELDS_2D)}
-_SIZES = np.array([f.size for f in FIELDS_2D], np.int64)
-_N_SLOTS = len(FIELDS_2D)
-# Compile-time constants of the kernel below (numba freezes globals).
+# The slot order is written here, not taken from the registry's order: numba freezes these
+# globals into its cached kernel, whose cache is keyed on this file only.
+_SLOTS = ("F", "C", "U", "R", "strain", "stretch", "directions", "area_ratio", "flags",
+          "thickness", "almansi", "hencky", "engineering", "principal_strain", "max_shear",
+          "von_mises", "directions_deformed")
+if set(_SLOTS) != set(NAMES_2D) or len(_SLOTS) != len(NAMES_2D):
+    raise ImportError("the 2D kernel's slots and the field registry's 2D fields differ: "
+                      f"{sorted(set(_SLOTS) ^ set(NAMES_2D))}")
+_SLOT = {name: s for s, name in enumerate(_SLOTS)}
+_BY_SLOT = tuple(sorted(FIELDS_2D, key=lambda f: _SLOT[f.name]))
+_SIZES = np.array([f.size for f in _BY_SLOT], np.int64)
+_N_SLOTS = len(_SLOTS)
+# Compile-time constants of the kernel below.
 S_F, S_C, S_U, S_R = _SLOT["F"], _SLOT["C"], _SLOT["U"], _SLOT["R"]
 S_STRAIN, S_STRETCH, S_DIRECTIONS = _SLOT["strain"], _SLOT["stretch"], _SLOT["directions"]
 S_AREA_RATIO, S_FLAGS = _SLOT["area_ratio"], _SLOT["flags"]
@@ -195,7 +204,7 @@ class KernelPlan:
         self.starts = np.full(_N_SLOTS, -1, np.int64)
         self.needs = 0
         self.float_size = self.flags_size = 0
-        for s, f in enumerate(FIELDS_2D):
+        for s, f in enumerate(_BY_SLOT):
             if f.name not in fields:
                 continue
             if f.integer:
@@ -210,7 +219,7 @@ class KernelPlan:
         (M, *shape) views by field name."""
         out, out_flags = np.empty(self.float_size, dtype), np.empty(self.flags_size, np.uint8)
         views = {}
-        for s, f in enumerate(FIELDS_2D):
+        for s, f in enumerate(_BY_SLOT):
             start = self.starts[s]
             if start >= 0:
                 buf = out_flags if f.integer else out
