@@ -2,7 +2,7 @@
 
 Every broken config gives exit code 2 and one line naming the key (or the YAML line);
 nothing is written. A run that blows up gives exit code 3 naming the frame, and keeps
-the frames and ``stats.csv`` rows written before it. Skipped until the simulator is there.
+the frames and ``stats.csv`` rows written before it.
 """
 
 import csv
