@@ -230,17 +230,14 @@ class KernelPlan:
 # ---------------------------------------------------------------- per-field kernel lines
 @njit(cache=True, inline="always")
 def _put4(out, i, a, b, c, d):
+    """A 2×2 matrix [[a, b], [c, d]] (F, R and the non-symmetric fields)."""
     out[i], out[i + 1], out[i + 2], out[i + 3] = a, b, c, d
 
 
 @njit(cache=True, inline="always")
-def _write_F(out, i, f00, f01, f10, f11):
-    _put4(out, i, f00, f01, f10, f11)
-
-
-@njit(cache=True, inline="always")
-def _write_C(out, i, c00, c01, c11):
-    _put4(out, i, c00, c01, c01, c11)
+def _put_symmetric(out, i, a, b, d):
+    """A symmetric 2×2 matrix [[a, b], [b, d]] (C, U)."""
+    _put4(out, i, a, b, b, d)
 
 
 @njit(cache=True, inline="always")
@@ -314,16 +311,6 @@ def _write_directions_deformed(out, i, r00, r01, r10, r11, v0, v1, d1x, d1y, d1z
 
 
 @njit(cache=True, inline="always")
-def _write_R(out, i, r00, r01, r10, r11):
-    _put4(out, i, r00, r01, r10, r11)
-
-
-@njit(cache=True, inline="always")
-def _write_U(out, i, u00, u01, u11):
-    _put4(out, i, u00, u01, u01, u11)
-
-
-@njit(cache=True, inline="always")
 def _write_stretch(out, i, lam1, lam2):
     out[i], out[i + 1] = lam1, lam2
 
@@ -363,13 +350,13 @@ def _triangle_fields(k, a, b, c, d1x, d1y, d1z, d2x, d2y, d2z, flag, dinv, basis
     f10 = c * g10
     f11 = c * g11
     if starts[S_F] >= 0:
-        _write_F(out, starts[S_F] + 4 * k, f00, f01, f10, f11)
+        _put4(out, starts[S_F] + 4 * k, f00, f01, f10, f11)
     if needs & NEED_C:
         c00 = f00 * f00 + f10 * f10
         c01 = f00 * f01 + f10 * f11
         c11 = f01 * f01 + f11 * f11
         if starts[S_C] >= 0:
-            _write_C(out, starts[S_C] + 4 * k, c00, c01, c11)
+            _put_symmetric(out, starts[S_C] + 4 * k, c00, c01, c11)
         if starts[S_STRAIN] >= 0:
             _write_strain(out, starts[S_STRAIN] + 4 * k, c00, c01, c11)
     absdet = abs(f00 * f11 - f01 * f10)
@@ -383,9 +370,9 @@ def _triangle_fields(k, a, b, c, d1x, d1y, d1z, d2x, d2y, d2z, flag, dinv, basis
         return
     r00, r01, r10, r11, u00, u01, u11 = polar_2x2(f00, f01, f10, f11)
     if starts[S_R] >= 0:
-        _write_R(out, starts[S_R] + 4 * k, r00, r01, r10, r11)
+        _put4(out, starts[S_R] + 4 * k, r00, r01, r10, r11)
     if starts[S_U] >= 0:
-        _write_U(out, starts[S_U] + 4 * k, u00, u01, u11)
+        _put_symmetric(out, starts[S_U] + 4 * k, u00, u01, u11)
     if starts[S_ENGINEERING] >= 0:
         _write_engineering(out, starts[S_ENGINEERING] + 4 * k, u00, u01, u11)
     if not needs & NEED_PRINCIPAL:
