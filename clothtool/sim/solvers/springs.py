@@ -144,6 +144,38 @@ def spring_assemble(x, si, sj, rest, k, slots, grad, values):
 # ---------------------------------------------------------------------------- PBD / XPBD
 
 
+@njit(cache=True, inline="always")
+def _spring_vector(x, i, j, inv_mass):
+    """(ok, w_i + w_j, d = x_i − x_j, ‖d‖); not ok when both ends are pinned or ‖d‖ < EPS."""
+    wsum = inv_mass[i] + inv_mass[j]
+    d0, d1, d2 = x[i, 0] - x[j, 0], x[i, 1] - x[j, 1], x[i, 2] - x[j, 2]
+    length = np.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+    return wsum != 0.0 and length >= EPS, wsum, d0, d1, d2, length
+
+
+@njit(cache=True, inline="always")
+def _correction(x, i, j, rest, stiff, inv_mass):
+    """PBD distance-constraint correction of spring (i, j) (Müller et al. 2007): with
+    d = x_i − x_j and s = k'(‖d‖ − L)/(‖d‖(w_i + w_j)), x_i −= s w_i d, x_j += s w_j d.
+    Returns (ok, s·w_i, s·w_j, d); not ok when both ends are pinned or ‖d‖ ≈ 0."""
+    ok, wsum, d0, d1, d2, length = _spring_vector(x, i, j, inv_mass)
+    if not ok:
+        return False, 0.0, 0.0, d0, d1, d2
+    s = stiff * (length - rest) / (length * wsum)
+    return True, s * inv_mass[i], s * inv_mass[j], d0, d1, d2
+
+
+@njit(cache=True, inline="always")
+def _move(y, i, j, wi, wj, d0, d1, d2):
+    """y_i −= w_i d, y_j += w_j d."""
+    y[i, 0] -= wi * d0
+    y[i, 1] -= wi * d1
+    y[i, 2] -= wi * d2
+    y[j, 0] += wj * d0
+    y[j, 1] += wj * d1
+    y[j, 2] += wj * d2
+
+
 @njit(cache=True)
 def pbd_gauss_seidel(x, si, sj, rest, stiff, inv_mass, backward):
     """One Gauss–Seidel sweep of distance constraints (Müller et al. 2007).
@@ -157,21 +189,10 @@ def pbd_gauss_seidel(x, si, sj, rest, stiff, inv_mass, backward):
     for r in range(m):
         e = m - 1 - r if backward else r
         i, j = si[e], sj[e]
-        wsum = inv_mass[i] + inv_mass[j]
-        if wsum == 0.0:
+        ok, wi, wj, d0, d1, d2 = _correction(x, i, j, rest[e], stiff[e], inv_mass)
+        if not ok:
             continue
-        d0, d1, d2 = x[i, 0] - x[j, 0], x[i, 1] - x[j, 1], x[i, 2] - x[j, 2]
-        length = np.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
-        if length < EPS:
-            continue
-        s = stiff[e] * (length - rest[e]) / (length * wsum)
-        wi, wj = s * inv_mass[i], s * inv_mass[j]
-        x[i, 0] -= wi * d0
-        x[i, 1] -= wi * d1
-        x[i, 2] -= wi * d2
-        x[j, 0] += wj * d0
-        x[j, 1] += wj * d1
-        x[j, 2] += wj * d2
+        _move(x, i, j, wi, wj, d0, d1, d2)
 
 
 @njit(cache=True)
@@ -183,21 +204,10 @@ def pbd_jacobi(x, si, sj, rest, stiff, inv_mass, relaxation, delta, count):
     count[:] = 0.0
     for e in range(si.shape[0]):
         i, j = si[e], sj[e]
-        wsum = inv_mass[i] + inv_mass[j]
-        if wsum == 0.0:
+        ok, wi, wj, d0, d1, d2 = _correction(x, i, j, rest[e], stiff[e], inv_mass)
+        if not ok:
             continue
-        d0, d1, d2 = x[i, 0] - x[j, 0], x[i, 1] - x[j, 1], x[i, 2] - x[j, 2]
-        length = np.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
-        if length < EPS:
-            continue
-        s = stiff[e] * (length - rest[e]) / (length * wsum)
-        wi, wj = s * inv_mass[i], s * inv_mass[j]
-        delta[i, 0] -= wi * d0
-        delta[i, 1] -= wi * d1
-        delta[i, 2] -= wi * d2
-        delta[j, 0] += wj * d0
-        delta[j, 1] += wj * d1
-        delta[j, 2] += wj * d2
+        _move(delta, i, j, wi, wj, d0, d1, d2)
         count[i] += 1.0
         count[j] += 1.0
     for v in range(x.shape[0]):
@@ -216,12 +226,8 @@ def strain_limit_pass(x, si, sj, rest, limited, inv_mass, lo, hi):
         if not limited[e]:
             continue
         i, j = si[e], sj[e]
-        wsum = inv_mass[i] + inv_mass[j]
-        if wsum == 0.0:
-            continue
-        d0, d1, d2 = x[i, 0] - x[j, 0], x[i, 1] - x[j, 1], x[i, 2] - x[j, 2]
-        length = np.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
-        if length < EPS:
+        ok, wsum, d0, d1, d2, length = _spring_vector(x, i, j, inv_mass)
+        if not ok:
             continue
         if length > hi * rest[e]:
             target = hi * rest[e]
@@ -231,12 +237,7 @@ def strain_limit_pass(x, si, sj, rest, limited, inv_mass, lo, hi):
             continue
         s = (length - target) / (length * wsum)
         wi, wj = s * inv_mass[i], s * inv_mass[j]
-        x[i, 0] -= wi * d0
-        x[i, 1] -= wi * d1
-        x[i, 2] -= wi * d2
-        x[j, 0] += wj * d0
-        x[j, 1] += wj * d1
-        x[j, 2] += wj * d2
+        _move(x, i, j, wi, wj, d0, d1, d2)
 
 
 @njit(cache=True)
@@ -251,12 +252,8 @@ def xpbd_sweep(x, x_n, si, sj, rest, alpha_tilde, gamma, inv_mass, lam, backward
     for r in range(m):
         e = m - 1 - r if backward else r
         i, j = si[e], sj[e]
-        wsum = inv_mass[i] + inv_mass[j]
-        if wsum == 0.0:
-            continue
-        d0, d1, d2 = x[i, 0] - x[j, 0], x[i, 1] - x[j, 1], x[i, 2] - x[j, 2]
-        length = np.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
-        if length < EPS:
+        ok, wsum, d0, d1, d2, length = _spring_vector(x, i, j, inv_mass)
+        if not ok:
             continue
         n0, n1, n2 = d0 / length, d1 / length, d2 / length
         c = length - rest[e]
@@ -270,12 +267,7 @@ def xpbd_sweep(x, x_n, si, sj, rest, alpha_tilde, gamma, inv_mass, lam, backward
         dlam = num / ((1.0 + g) * wsum + at)
         lam[e] += dlam
         wi, wj = dlam * inv_mass[i], dlam * inv_mass[j]
-        x[i, 0] += wi * n0
-        x[i, 1] += wi * n1
-        x[i, 2] += wi * n2
-        x[j, 0] -= wj * n0
-        x[j, 1] -= wj * n1
-        x[j, 2] -= wj * n2
+        _move(x, i, j, -wi, -wj, n0, n1, n2)
 
 
 # ---------------------------------------------------------------------------- PD
