@@ -2,7 +2,7 @@
 
 Every command body imports its heavy modules (numba, h5py) lazily so that
 ``clothtool --help`` starts fast. Errors become one line on stderr and an exit
-code (spec §6): 0 done, 2 bad input or usage, 3 numerical failure, 130 interrupted.
+code: 0 done, 2 bad input or usage, 3 numerical failure, 130 interrupted.
 """
 
 import sys
@@ -321,7 +321,7 @@ def plot(result, output, pair, field, component, dpi):
 
 @main.command("init-config")
 def init_config():
-    """Print a commented default simulation config (spec §5).
+    """Print a commented default simulation config.
 
     \b
       clothtool init-config > config.yaml

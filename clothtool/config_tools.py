@@ -1,5 +1,5 @@
 """Config helpers for parameter sweeps: ``simulate --set key=value`` overrides and the
-commented default config printed by ``clothtool init-config`` (spec §5).
+commented default config printed by ``clothtool init-config``.
 
 An override is ``dotted.key=value``: the key walks nested mappings (a missing mapping is
 created, so ``--set solver.substeps=4`` works when the file has no ``solver`` section) and
@@ -16,7 +16,7 @@ import yaml
 from clothtool.errors import InputError
 
 DEFAULT_CONFIG = """\
-# clothtool simulation config (spec §5, plus the simulator's optional settings).
+# clothtool simulation config: every key with its default (docs/simulate.md has them all).
 # SI units: metres, kilograms, seconds.
 # Run it with:  clothtool simulate config.yaml   (override entries with --set key=value)
 # Paths are relative to this file's folder.

@@ -35,7 +35,7 @@ def random_rotation(rng):
 
 
 def tangent_basis(vertices, faces):
-    """(M, 2, 3) rows t1, t2 of each triangle's tangent frame (spec §2), by numpy."""
+    """(M, 2, 3) rows t1, t2 of each triangle's tangent frame, by numpy."""
     e1 = vertices[faces[:, 1]] - vertices[faces[:, 0]]
     e2 = vertices[faces[:, 2]] - vertices[faces[:, 0]]
     t1 = e1 / np.linalg.norm(e1, axis=1)[:, None]

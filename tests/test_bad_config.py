@@ -1,4 +1,4 @@
-"""Bad simulation configs and a run that blows up, through the CLI (spec §5, §6).
+"""Bad simulation configs and a run that blows up, through the CLI.
 
 Every broken config gives exit code 2 and one line naming the key (or the YAML line);
 nothing is written. A run that blows up gives exit code 3 naming the frame, and keeps

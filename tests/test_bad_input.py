@@ -1,4 +1,4 @@
-"""Bad input through the CLI (spec §6): a corpus of broken files, sequences, options and
+"""Bad input through the CLI: a corpus of broken files, sequences, options and
 output paths, each built here. Every case must give its exit code, one line on stderr
 naming the culprit, no traceback, and leave nothing behind: no new output, no temporary
 file, and an existing output byte-identical."""

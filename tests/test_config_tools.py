@@ -8,8 +8,8 @@ from clothtool.cli import main
 from clothtool.config_tools import DEFAULT_CONFIG, apply_overrides
 from clothtool.errors import InputError
 
-SPEC_DEFAULTS = {  # spec §5, entry by entry, and the simulator's optional settings; the
-    # sheet is horizontal (xz), since an upright one (the spec's xy) starts inside the sphere
+SPEC_DEFAULTS = {  # the documented example, entry by entry, and the simulator's optional
+    # settings; the sheet is horizontal (xz), since an upright one (xy) starts inside the sphere
     "mesh": {"grid": {"nx": 30, "ny": 30, "width": 1.0, "height": 1.0, "plane": "xz"}},
     "material": {"density": 0.2, "stretch": 5000.0, "shear": 50.0, "bend": 1.0e-5,
                  "damping": 0.01, "bend_model": "dihedral"},
@@ -73,7 +73,7 @@ def test_override_errors_name_the_assignment(assignment, message):
 
 def test_default_config_matches_the_simulator():
     """init-config loads in the simulator and shows every setting of its schema, each with the
-    simulator's default (except the spec's example pins and colliders, and the output path)."""
+    simulator's default (except the example's pins and colliders, and the output path)."""
     import clothtool.sim.config as sim
 
     raw = yaml.safe_load(DEFAULT_CONFIG)

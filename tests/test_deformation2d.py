@@ -1,4 +1,4 @@
-"""Known-answer and property tests of the per-triangle 2D kernel (spec §2)."""
+"""Known-answer and property tests of the per-triangle 2D kernel."""
 
 import numpy as np
 import pytest

@@ -1,5 +1,5 @@
 """Ctrl-C and SIGTERM in the middle of a long analyze: exit code 130, no temporary
-file left, and the previous output byte-identical (spec §6)."""
+file left, and the previous output byte-identical."""
 
 import os
 import signal

@@ -1,4 +1,4 @@
-"""The 3D (Kabsch) variant inside ``analyze_sequence`` (``clothtool analyze --kabsch``, spec §3).
+"""The 3D (Kabsch) variant inside ``analyze_sequence`` (``clothtool analyze --kabsch``).
 
 Datasets, beside the 2D ones (P pairs, N vertices, M triangles, E interior edges):
 

@@ -1,4 +1,4 @@
-"""Writing analysis results to HDF5 (spec §4) without ever leaving a partial file.
+"""Writing analysis results to HDF5 without ever leaving a partial file.
 
 The file is written under a temporary name in the target folder and renamed over
 the target only when complete; on any error, Ctrl-C or SIGTERM the temporary file
