@@ -297,21 +297,25 @@ class VertexBlockDescent(Integrator):
             damping_data(x_n, m.faces, m.dr_inv, m.area, m.stretch, m.k_shear, self.bend,
                          m.hinge, self.tri_damp, self.hinge_damp)
 
+    def sweep(self, x, x_n, y):
+        """One Newton step per free vertex, colour by colour, on x in place."""
+        args = self._args(x, x_n, y)
+        ptr = self.colour_ptr
+        for c in range(len(ptr) - 1):
+            vbd_colour(self.vertices, ptr[c], ptr[c + 1], self.chunks, *args)
+
     def step(self, state):
         solver = self.solver
         y = self._inertial_target(state)
         x = self._initial_guess(state)
         self.prepare(state.x)
-        args = self._args(x, state.x, y)
         rho = solver.chebyshev_rho
         prev1 = prev2 = None
         if rho > 0.0:
             prev1, prev2 = x.copy(), x.copy()
         omega = 1.0
-        ptr = self.colour_ptr
         for k in range(solver.iterations):
-            for c in range(len(ptr) - 1):
-                vbd_colour(self.vertices, ptr[c], ptr[c + 1], self.chunks, *args)
+            self.sweep(x, state.x, y)
             if rho > 0.0:
                 omega = 1.0 if k == 0 else (2.0 / (2.0 - rho * rho) if k == 1
                                             else 4.0 / (4.0 - rho * rho * omega))
