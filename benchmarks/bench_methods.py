@@ -81,6 +81,7 @@ GRID = [
     ("pbd strain-limit 5%", "pbd", {"strain_limit": 0.05}, (4, 16), (5, 20)),
     ("explicit", "explicit", {"cfl": 0.0}, (200, 400, 800, 1600), None),
     ("explicit auto", "explicit", {}, (1,), None),
+    ("vbd", "vbd", {}, (1, 4, 16), (5, 20)),
 ]
 DRAPE_GRID = [
     ("implicit", "implicit", {}, (1, 4), None),
@@ -89,6 +90,7 @@ DRAPE_GRID = [
     ("xpbd", "xpbd", {}, (4, 16, 64), (5,)),
     ("pbd gauss-seidel", "pbd", {}, (16, 64), (5,)),
     ("explicit", "explicit", {"cfl": 0.0}, (400, 1600), None),
+    ("vbd", "vbd", {}, (4, 16), (5, 20)),
 ]
 COLUMNS = ["scene", "method", "substeps", "h_ms", "iterations", "ms_per_frame", "error_m",
            "max_stretch", "energy_drift", "status"]
@@ -164,7 +166,8 @@ def plot(rows, path, title):
 STAB_METHODS = [("implicit", "implicit", {}), ("mass-spring", "mass-spring", {}),
                 ("projective", "projective", {}), ("xpbd", "xpbd", {}),
                 ("pbd gauss-seidel", "pbd", {}), ("pbd jacobi", "pbd", {"pbd_variant": "jacobi"}),
-                ("explicit", "explicit", {"cfl": 0.0}), ("explicit auto", "explicit", {})]
+                ("explicit", "explicit", {"cfl": 0.0}), ("explicit auto", "explicit", {}),
+                ("vbd", "vbd", {})]
 STAB_STIFFNESS = (1e3, 1e4, 1e5, 1e6)
 STAB_SUBSTEPS = (1, 8)  # h = 1/30 s and 1/240 s
 STAB_STARTS = ("random", "flattened")

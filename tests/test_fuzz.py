@@ -10,7 +10,7 @@ from datetime import timedelta
 
 import numpy as np
 import pytest
-from conftest import EXAMPLE_CONFIG, grid
+from conftest import grid
 from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
@@ -341,17 +341,29 @@ def test_obj_fast_path_never_misreads(obj_files):
 
 # ---------------------------------------------------------------------------- configs
 
-CONFIG = (EXAMPLE_CONFIG.replace("nx: 12, ny: 12, width: 1.0, height: 1.0, plane: xy",
-                                  "nx: 6, ny: 5, width: 1.0, height: 0.8, plane: xz")
-          .replace("pins: [top_corners]", "pins: [top_corners, 3]")
-          .replace("METHOD", "implicit").replace("frames: 4", "frames: 120"))
+CONFIG = """\
+mesh:
+  grid: {nx: 6, ny: 5, width: 1.0, height: 0.8, plane: xz}
+material: {density: 0.2, stretch: [5000.0, 800.0], rest_stretch: [1.1, 1.0], shear: 50.0,
+           bend: 1.0e-5, damping: 0.01}
+scene:
+  gravity: [0, -9.81, 0]
+  pins: [top_corners, 3]
+  colliders:
+    - sphere: {center: [0, -0.5, 0], radius: 0.3}
+    - plane: {point: [0, -1, 0], normal: [0, 1, 0]}
+solver: {method: implicit, substeps: 1, tolerance: 1.0e-6, max_iterations: 500,
+         iterations: 10, chebyshev_rho: 0.0}
+time: {fps: 30, frames: 120}
+output: {dir: out/, every: 1}
+"""
 
 KEYS = ["mesh", "grid", "ply", "nx", "ny", "width", "height", "plane", "material", "density",
-        "stretch", "shear", "bend", "damping", "scene", "gravity", "pins", "colliders", "sphere",
+        "stretch", "rest_stretch", "shear", "bend", "damping", "scene", "gravity", "pins", "colliders", "sphere",
         "center", "radius", "point", "normal", "solver", "method", "substeps", "tolerance",
-        "max_iterations", "time", "fps", "frames", "output", "dir", "every", "bogus", ""]
+        "max_iterations", "iterations", "chebyshev_rho", "time", "fps", "frames", "output", "dir", "every", "bogus", ""]
 SCALARS = (st.none() | st.booleans() | st.integers(-10**20, 10**20) | st.floats()
-           | st.sampled_from(KEYS + ["xy", "top_corners", "1e5", "implicit", "-0", "nan"])
+           | st.sampled_from(KEYS + ["xy", "top_corners", "1e5", "implicit", "vbd", "-0", "nan"])
            | st.text(max_size=8))
 VALUES = st.recursive(SCALARS, lambda inner: st.lists(inner, max_size=4)
                       | st.dictionaries(st.sampled_from(KEYS) | st.text(max_size=4), inner,

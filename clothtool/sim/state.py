@@ -16,6 +16,8 @@ class State:
     time: float = 0.0
     # contact memory: vertices whose contact pulled at the last step are released at the next
     released: np.ndarray = field(default=None)  # (N,) bool
+    # vbd: (v_n − v_{n−1})/h of the last step, for its initial guess; None = none yet
+    acceleration: np.ndarray = field(default=None)  # (N, 3)
 
     def __post_init__(self):
         if self.released is None:

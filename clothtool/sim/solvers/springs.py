@@ -9,12 +9,16 @@ Stiffness from the material (N/m per unit area, so refining the mesh keeps the
 material): an edge of rest length L whose adjacent rest triangles have total area
 A, at angle θ to the warp (u) direction of the rest coordinates, gets
 
-    k_e = (k_stretch cos²2θ + 4 k_shear sin²2θ) · A / L²
+    k_e = ((k_u cos²θ + k_v sin²θ) cos²2θ + 4 k_shear sin²2θ) · A / L²
 
-so on a grid the axis edges are the structural springs (k_e = k_stretch in the
-interior, reproducing the membrane's uniaxial stiffness) and the diagonals are
+(k_u, k_v: material.stretch along u and v) so on a grid the axis edges are the
+structural springs (k_e = k_u along u, k_v along v in the interior, reproducing the
+membrane's uniaxial stiffnesses) and the diagonals are
 the shear springs (4 k_shear A/L² = 2 k_shear reproduces Ψ_shear = k_h/2 (f0·f1)²
-to first order). A mesh without rest uv treats every edge as structural. A bend
+to first order). A mesh without rest uv treats every edge as structural. The rest
+length factors b_u, b_v (material.rest_stretch) make every spring's rest length that
+of the rest state F = diag(b_u, b_v): ‖(b_u Δu, b_v Δv)‖ for an edge (Δu, Δv) of the
+rest uv (b‖e‖ without uv, where b_u = b_v). A bend
 spring gets k_e = 2c/L_kl², with c = k_bend ‖ē‖²/(2(Ā_k + Ā_l)) the hinge's dihedral
 coefficient (so ½k_e(L_kl θ)² = cθ²): a dimensional stand-in, not a calibrated
 bending model — a spring across a flat hinge resists bending only to second order
@@ -69,12 +73,15 @@ def build_springs(model):
     adj_area = np.bincount(inverse, weights=np.repeat(model.area, 3), minlength=len(uniq))
     d = rest3d[ej] - rest3d[ei]
     length = np.sqrt(np.einsum("ij,ij->i", d, d))
+    k_u, k_v, b_u, b_v = model.stretch
     if model.mesh.uv is not None:
         theta = np.arctan2(d[:, 1], d[:, 0])
         cos2 = np.cos(2.0 * theta) ** 2
+        k_axis = k_u * np.cos(theta) ** 2 + k_v * np.sin(theta) ** 2
     else:
         cos2 = np.ones(len(uniq))
-    k = (model.k_stretch * cos2 + 4.0 * model.k_shear * (1.0 - cos2)) * adj_area / length ** 2
+        k_axis = np.full(len(uniq), k_u)  # the Model has k_u = k_v, b_u = b_v without uv
+    k = (k_axis * cos2 + 4.0 * model.k_shear * (1.0 - cos2)) * adj_area / length ** 2
     structural = cos2 >= 0.5
     n_bend = 0
     if model.bend_model is not None and len(model.hinge):
@@ -83,9 +90,11 @@ def build_springs(model):
         lb = np.sqrt(np.einsum("ij,ij->i", db, db))
         kb = 2.0 * model.hinge_coef / lb ** 2
         ei, ej = np.concatenate([ei, bi]), np.concatenate([ej, bj])
-        length, k = np.concatenate([length, lb]), np.concatenate([k, kb])
+        d, length, k = np.concatenate([d, db]), np.concatenate([length, lb]), np.concatenate([k, kb])
         structural = np.concatenate([structural, np.zeros(len(bi), np.bool_)])
         n_bend = len(bi)
+    # rest lengths of the rest state F = diag(b_u, b_v): an edge (du, dv) rests at ‖(b_u du, b_v dv)‖
+    length = np.sqrt((b_u * d[:, 0]) ** 2 + (b_v * d[:, 1]) ** 2 + (b_u * d[:, 2]) ** 2)
     keep = k > 0.0
     if not np.all(keep):  # e.g. shear = 0: diagonals carry nothing
         ei, ej, length, k, structural = ei[keep], ej[keep], length[keep], k[keep], structural[keep]
