@@ -16,8 +16,8 @@ import numba
 import numpy as np
 
 from benchmarks.common import markdown_table, write_csv
-from clothtool.analysis.deformation2d import (FIELDS, allocate_fields, allocate_rest,
-                                              deformation_fields, reference_from_positions)
+from clothtool.analysis.deformation2d import (KernelPlan, deformation_fields,
+                                              reference_from_positions)
 
 M = 100_000
 
@@ -90,9 +90,10 @@ def numpy_svd(F):
 
 def clothtool_kernel(x_ref, x_def, faces, dtype):
     ref = reference_from_positions(x_ref, faces, 1e-8)
-    out = allocate_fields(len(faces), ("stretch", "R", "U"), dtype)
-    deformation_fields(x_def, faces, *ref, 1e-8, *(out[n] for n in FIELDS), *allocate_rest(0))
-    return out["stretch"], out["R"], out["U"]
+    plan = KernelPlan(len(faces), ("stretch", "R", "U"))
+    out, out_flags, views = plan.allocate(dtype)
+    deformation_fields(x_def, faces, *ref, 1e-8, plan.starts, plan.needs, out, out_flags)
+    return views["stretch"], views["R"], views["U"]
 
 
 def median_seconds(fn, repeat=7):

@@ -2,7 +2,7 @@
 
 Every command body imports its heavy modules (numba, h5py) lazily so that
 ``clothtool --help`` starts fast. Errors become one line on stderr and an exit
-code (spec §6): 0 done, 2 bad input or usage, 3 numerical failure, 130 interrupted.
+code: 0 done, 2 bad input or usage, 3 numerical failure, 130 interrupted.
 """
 
 import sys
@@ -17,7 +17,13 @@ except ImportError:  # pragma: no cover
         pass
 
 from clothtool import __version__, interrupt
-from clothtool.errors import ClothtoolError
+from clothtool.errors import ClothtoolError, InputError
+
+OPTIONS = {"fields": "--fields", "dtype": "--dtype", "compression": "--compression",
+           "pairs": "--pairs", "reference": "--reference", "uv_scale": "--uv-scale",
+           "vertex_average": "--vertex-average", "kabsch": "--kabsch", "pair": "--pair",
+           "field": "--field", "component": "--component", "color_range": "--range"}
+"""Library keyword argument → the option that sets it, for the messages of InputError."""
 
 EXIT_CODES_HELP = """\b
 Exit codes: 0 done, 2 bad input, usage or unusable output path,
@@ -42,7 +48,8 @@ class ClothtoolGroup(click.Group):
         try:
             return super().invoke(ctx)
         except ClothtoolError as exc:
-            _fail(ctx, f"error: {exc}", exc.exit_code, exc)
+            message = exc.format(OPTIONS) if isinstance(exc, InputError) else str(exc)
+            _fail(ctx, f"error: {message}", exc.exit_code, exc)
         except NoArgsIsHelpError:
             raise
         except click.UsageError as exc:
@@ -103,7 +110,14 @@ def _progress_enabled(quiet):
     return not quiet and sys.stderr.isatty()
 
 
-ANALYZE_EPILOG = """\b
+def _analyze_epilog():
+    from clothtool.analysis.fields import help_table
+
+    return (ANALYZE_EXAMPLES + "\b\nFields (--fields, comma separated; all = the default table, "
+            "extended = every 2D field):\n" + help_table() + ANALYZE_READING)
+
+
+ANALYZE_EXAMPLES = """\b
 Examples:
   clothtool analyze frames/ -o out.h5
       pairs (0,1), (1,2), ... of all *.ply in frames/, natural order
@@ -120,20 +134,18 @@ Examples:
   clothtool analyze volume/ -o out.h5 --fields stretch,volume_ratio,flags
       a tetrahedral sequence (.vtu, .vtk, .msh or TetGen .node frames): /tet/... fields
 
+"""
+
+ANALYZE_READING = """
+
 \b
-Fields (--fields, comma separated; default all):
-  F C U R strain stretch directions area_ratio flags
-  with --kabsch also: rotation angle residual (per vertex, /vertex/...),
-  F3 R3 U3 stretch3 directions3 (per face), dihedral_change (per edge, /edge/...);
-  flags then also selects /vertex/flags and /edge/flags
-  tetrahedra: F C U R strain stretch directions volume_ratio flags (3×3, λ1 ≥ λ2 ≥ λ3)
 Read the result with h5py:  h5py.File('out.h5')['face/stretch'][k]  (pair k)
 Open out.xdmf (written beside out.h5) in ParaView for the deformed mesh over time.
 
 """ + EXIT_CODES_HELP
 
 
-@main.command(epilog=ANALYZE_EPILOG)
+@main.command(epilog=_analyze_epilog())
 @click.argument("inputs", nargs=-1, required=True, metavar="FRAMES...")
 @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False),
               help="HDF5 file to write (written under a temporary name, renamed when complete).")
@@ -181,7 +193,7 @@ def analyze(inputs, output, reference, uv_scale, fields, dtype, compression, ver
         pairs=pair_slice, vertex_average=vertex_average,
     )
     if not quiet:
-        from clothtool.results.xdmf import xdmf_path
+        from clothtool.analysis.output.xdmf import xdmf_path
 
         click.echo(summary.describe())
         click.echo(f"  for ParaView: {xdmf_path(output)}; overview: clothtool info {output}")
@@ -194,7 +206,7 @@ Examples:
   clothtool info out.h5 --csv | awk -F, 'NR > 1 && $5 > 1.05'      pairs with λ1 median > 1.05
 
 \b
-CSV columns: pair,reference,deformed, lambda1|lambda2|J _p5,_p50,_p95, compressed,stretched
+CSV columns: pair,reference,deformed, lambda1|lambda2|area_ratio _p5,_p50,_p95, compressed,stretched
 (fractions of triangles with λ2 < 1, λ1 > 1), flagged and per-flag counts.
 
 """ + EXIT_CODES_HELP
@@ -316,7 +328,7 @@ def plot(result, output, pair, field, component, dpi):
 
 @main.command("init-config")
 def init_config():
-    """Print a commented default simulation config (spec §5).
+    """Print a commented default simulation config.
 
     \b
       clothtool init-config > config.yaml

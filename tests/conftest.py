@@ -1,5 +1,7 @@
 """Shared builders for the tests: meshes with known geometry, made here (no external data)."""
 
+import time
+
 import numpy as np
 import pytest
 from scipy.spatial import Delaunay
@@ -33,7 +35,7 @@ def random_rotation(rng):
 
 
 def tangent_basis(vertices, faces):
-    """(M, 2, 3) rows t1, t2 of each triangle's tangent frame (spec §2), by numpy."""
+    """(M, 2, 3) rows t1, t2 of each triangle's tangent frame, by numpy."""
     e1 = vertices[faces[:, 1]] - vertices[faces[:, 0]]
     e2 = vertices[faces[:, 2]] - vertices[faces[:, 0]]
     t1 = e1 / np.linalg.norm(e1, axis=1)[:, None]
@@ -107,3 +109,39 @@ def write_tet_file(path_stem, x, tets, variant, triangles=None):
                      for key in ("gmsh:physical", "gmsh:geometrical")}
     meshio.write(path, meshio.Mesh(x, cells, cell_data=cell_data), file_format=fmt, **kw)
     return path
+
+
+# The example config of the simulator's documentation; METHOD stands for solver.method.
+EXAMPLE_CONFIG = """
+mesh: {grid: {nx: 12, ny: 12, width: 1.0, height: 1.0, plane: xy}}
+material: {density: 0.2, stretch: 5000.0, shear: 50.0, bend: 1.0e-5, damping: 0.01}
+scene:
+  gravity: [0, -9.81, 0]
+  pins: [top_corners]
+  colliders:
+    - sphere: {center: [0, -0.5, 0], radius: 0.3}
+    - plane: {point: [0, -1, 0], normal: [0, 1, 0]}
+solver: {method: METHOD, substeps: 1, tolerance: 1.0e-6, max_iterations: 500}
+time: {fps: 30, frames: 4}
+output: {dir: out/, every: 1}
+"""
+
+
+def interrupt_when(proc, ready, signum, waiting_for, timeout=300):
+    """Send ``signum`` to the clothtool process ``proc`` once ``ready()`` holds; check that it
+    exits 130 with the one-line message. Returns (stdout, stderr)."""
+    try:
+        deadline = time.monotonic() + timeout
+        while not ready():
+            assert proc.poll() is None, proc.communicate()
+            assert time.monotonic() < deadline, f"{waiting_for} never happened"
+            time.sleep(0.02)
+        proc.send_signal(signum)
+        stdout, stderr = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    assert proc.returncode == 130, stderr
+    assert stderr.decode() == "clothtool: interrupted\n"
+    return stdout, stderr

@@ -106,7 +106,7 @@ def test_cli_known_answer_float32(tmp_path):
         np.testing.assert_allclose(f["tet/stretch"][1], np.broadcast_to([1.5, 1, 1], (len(TETS), 3)),
                                    atol=1e-6)
         np.testing.assert_allclose(f["tet/volume_ratio"][0], 1.25, atol=1e-6)
-        np.testing.assert_allclose(f["summary/J_p50"][:], [1.25, 1.5], atol=1e-6)
+        np.testing.assert_allclose(f["summary/volume_ratio_p50"][:], [1.25, 1.5], atol=1e-6)
         np.testing.assert_allclose(f["summary/lambda3_p50"][:], [1.0, 1.0], atol=1e-6)
         assert list(f["summary/inverted"][:]) == [0, 0]
 
@@ -129,11 +129,12 @@ def test_inverted_and_degenerate_tets_are_counted(tmp_path):
 @pytest.mark.parametrize("options,message", [
     (["--kabsch"], "--kabsch: the 3D variant is for triangle meshes"),
     (["--reference", "uv"], "--reference uv: tetrahedral meshes have no texture coordinates"),
-    (["--vertex-average", "stretch"], "--vertex-average: only for triangle meshes"),
+    (["--vertex-average", "stretch"], "--vertex-average stretch: only for triangle meshes"),
     (["--fields", "area_ratio"], "--fields: unknown field 'area_ratio' for tetrahedra"),
     (["--reference", "nowhere.vtu"], "--reference: 'nowhere.vtu' is not previous"),
 ])
 def test_options_that_do_not_apply(tmp_path, options, message):
+    """One line each, named as the CLI spells the option (the library says kabsch=True …)."""
     make_sequence(tmp_path / "seq", frames=2)
     result = CliRunner().invoke(main, ["analyze", str(tmp_path / "seq"), "-o",
                                        str(tmp_path / "out.h5"), *options])
@@ -244,7 +245,7 @@ def test_info_export_plot_merge_and_xdmf(tmp_path):
     assert result.exit_code == 0, result.output
     with h5py.File(out) as a, h5py.File(tmp_path / "merged.h5") as b:
         for name in [*(f"tet/{n}" for n in a["tet"]), "mesh/tets", "frame_vertices",
-                     "summary/J_p50", "summary/lambda3_p5"]:
+                     "summary/volume_ratio_p50", "summary/lambda3_p5"]:
             np.testing.assert_array_equal(a[name][()], b[name][()], err_msg=name)
     # ParaView's reader sees tetrahedra with the /tet fields as cell data
     times, reader, log = read_xdmf(tmp_path / "all.xdmf")

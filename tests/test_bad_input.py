@@ -1,4 +1,4 @@
-"""Bad input through the CLI (spec §6): a corpus of broken files, sequences, options and
+"""Bad input through the CLI: a corpus of broken files, sequences, options and
 output paths, each built here. Every case must give its exit code, one line on stderr
 naming the culprit, no traceback, and leave nothing behind: no new output, no temporary
 file, and an existing output byte-identical."""
@@ -426,10 +426,10 @@ def disk_full_while_writing(tmp):
 
 @case
 def out_of_memory(tmp):
-    def huge(m, fields, store):
+    def huge(self, dtype):
         raise MemoryError("Unable to allocate 74.5 GiB for an array")
     return Case([str(sequence(tmp))], "out of memory: Unable to allocate 74.5 GiB",
-                patch={"clothtool.analysis.sequence.allocate_fields": huge})
+                patch={"clothtool.analysis.deformation2d.KernelPlan.allocate": huge})
 
 
 @case
@@ -437,7 +437,7 @@ def internal_bug(tmp):
     def bug(*args):
         raise ZeroDivisionError("a bug in a kernel")
     return Case([str(sequence(tmp))], "ZeroDivisionError: a bug in a kernel", code=1,
-                patch={"clothtool.analysis.sequence.deformation_fields": bug})
+                patch={"clothtool.analysis.sequence.deformation_fields_and_next_rest": bug})
 
 
 @case
@@ -463,54 +463,21 @@ def broken_obj(tmp, data, line, options=()):
                 broken_file=folder / "frame_1.obj")
 
 
-@case
-def obj_index_out_of_range(tmp):
-    return broken_obj(tmp, GOOD_OBJ + b"f 1 2 3\nf 1 3 5\n", 10)
-
-
-@case
-def obj_negative_index_out_of_range(tmp):
-    return broken_obj(tmp, GOOD_OBJ + b"f 1 2 3\nf -1 -2 -5\n", 10)
-
-
-@case
-def obj_index_zero(tmp):
-    return broken_obj(tmp, GOOD_OBJ + b"f 0 1 2\n", 9)
-
-
-@case
-def obj_texture_index_out_of_range(tmp):
-    return broken_obj(tmp, GOOD_OBJ + b"f 1/1 2/2 3/9\n", 9)
-
-
-@case
-def obj_face_with_two_corners(tmp):
-    return broken_obj(tmp, GOOD_OBJ + b"f 1 2 3\nf 1 2\n", 10)
-
-
-@case
-def obj_bad_corner(tmp):
-    return broken_obj(tmp, GOOD_OBJ + b"f 1/1/1/1 2 3\n", 9)
-
-
-@case
-def obj_non_integer_index(tmp):
-    return broken_obj(tmp, GOOD_OBJ + b"f 1 2.5 3\n", 9)
-
-
-@case
-def obj_vertex_with_two_coordinates(tmp):
-    return broken_obj(tmp, GOOD_OBJ.replace(b"v 1 1 0", b"v 1 1") + b"f 1 2 3\n", 3)
-
-
-@case
-def obj_non_numeric_coordinate(tmp):
-    return broken_obj(tmp, GOOD_OBJ.replace(b"v 1 1 0", b"v 1 one 0") + b"f 1 2 3\n", 3)
-
-
-@case
-def obj_unknown_statement(tmp):
-    return broken_obj(tmp, GOOD_OBJ + b"f 1 2 3\nbogus 1 2\n", 10)
+# broken second frames of an OBJ sequence: name → (its text, the line the message must name)
+BROKEN_OBJ = {
+    "obj_index_out_of_range": (GOOD_OBJ + b"f 1 2 3\nf 1 3 5\n", 10),
+    "obj_negative_index_out_of_range": (GOOD_OBJ + b"f 1 2 3\nf -1 -2 -5\n", 10),
+    "obj_index_zero": (GOOD_OBJ + b"f 0 1 2\n", 9),
+    "obj_texture_index_out_of_range": (GOOD_OBJ + b"f 1/1 2/2 3/9\n", 9),
+    "obj_face_with_two_corners": (GOOD_OBJ + b"f 1 2 3\nf 1 2\n", 10),
+    "obj_bad_corner": (GOOD_OBJ + b"f 1/1/1/1 2 3\n", 9),
+    "obj_non_integer_index": (GOOD_OBJ + b"f 1 2.5 3\n", 9),
+    "obj_vertex_with_two_coordinates": (GOOD_OBJ.replace(b"v 1 1 0", b"v 1 1") + b"f 1 2 3\n", 3),
+    "obj_non_numeric_coordinate": (GOOD_OBJ.replace(b"v 1 1 0", b"v 1 one 0") + b"f 1 2 3\n", 3),
+    "obj_unknown_statement": (GOOD_OBJ + b"f 1 2 3\nbogus 1 2\n", 10),
+}
+for _name, (_data, _line) in BROKEN_OBJ.items():
+    CASES[_name] = lambda tmp, data=_data, line=_line: broken_obj(tmp, data, line)
 
 
 @case

@@ -33,6 +33,7 @@ import numpy as np
 from numba import njit, prange
 
 from clothtool import numba_setup  # noqa: F401  (threading layer, before the first kernel)
+from clothtool.analysis.fields import FIELDS_TET, NAMES_TET
 from clothtool.vec3 import cross, dot, load, scale, sub
 
 DEGENERATE_TOL = 1e-8
@@ -44,9 +45,12 @@ FLAG_NONFINITE = np.uint8(4)
 FLAG_INVERTED = np.uint8(16)
 NAN_FLAGS = np.uint8(7)
 
+# The kernel's output order (its arguments), checked against the registry's tet fields.
 TET_FIELDS = ("F", "C", "U", "R", "strain", "stretch", "directions", "volume_ratio", "flags")
-TET_SHAPES = {"F": (3, 3), "C": (3, 3), "U": (3, 3), "R": (3, 3), "strain": (3, 3),
-              "stretch": (3,), "directions": (3, 3), "volume_ratio": (), "flags": ()}
+if TET_FIELDS != NAMES_TET:
+    raise ImportError("the tetrahedron kernel's outputs and the field registry's tet fields "
+                      f"differ: {TET_FIELDS} / {NAMES_TET}")
+TET_SHAPES = {f.name: f.shape for f in FIELDS_TET}
 
 MAX_SWEEPS = 30  # 3–5 sweeps are typical: convergence is quadratic
 BLOCK = 64  # tetrahedra whose eigenproblems are solved together (vectorised)

@@ -13,39 +13,29 @@ import time
 import numpy as np
 
 from clothtool import interrupt
+from clothtool.analysis.fields import FIELDS_TET
+from clothtool.analysis.output.summary import SummaryWriter
 from clothtool.analysis.tet import (DEGENERATE_TOL, TET_FIELDS, TET_SHAPES, allocate_fields,
                                     allocate_rest, rest_from_positions, tet_fields)
 from clothtool.errors import InputError
 from clothtool.io.h5 import AtomicH5, PairWriter, create_pair_dataset
 from clothtool.io.tetmesh import TetFrameReader, read_tet_mesh
-from clothtool.results.summary import SummaryWriter
 
-NEEDED = ("stretch", "volume_ratio", "flags")  # computed for /summary even if not stored
-
-
-def parse_tet_fields(fields):
-    """'all', a comma-separated string or an iterable of names → tuple in canonical order."""
-    if fields is None or fields == "all":
-        return TET_FIELDS
-    names = [f.strip() for f in fields.split(",")] if isinstance(fields, str) else list(fields)
-    names = [n for n in names if n]
-    unknown = [n for n in names if n not in TET_FIELDS]
-    if unknown or not names:
-        raise InputError((f"--fields: unknown field {unknown[0]!r} for tetrahedra" if unknown
-                          else "--fields: empty") + f"; choose from {', '.join(TET_FIELDS)}")
-    return tuple(n for n in TET_FIELDS if n in names)
+NEEDED = tuple(f.name for f in FIELDS_TET if f.summary)  # computed for /summary even if not stored
 
 
 def check_tet_options(reference, kabsch, vertex_average):
     """Options of the triangle analysis that do not apply to tetrahedra: one-line errors."""
     if kabsch:
-        raise InputError("--kabsch: the 3D variant is for triangle meshes; a tetrahedral "
-                         "sequence already gets the full 3×3 analysis")
+        raise InputError("{kabsch}: the 3D variant is for triangle meshes; a tetrahedral "
+                         "sequence already gets the full 3×3 analysis",
+                         mentions={"kabsch": "kabsch=True"})
     if reference == "uv":
-        raise InputError("--reference uv: tetrahedral meshes have no texture coordinates; "
-                         "use previous, first or a mesh file")
+        raise InputError("tetrahedral meshes have no texture coordinates; use previous, first "
+                         "or a mesh file", keyword="reference", value="uv")
     if vertex_average:
-        raise InputError("--vertex-average: only for triangle meshes")
+        raise InputError("only for triangle meshes", keyword="vertex_average",
+                         value=vertex_average)
 
 
 class _TetRest:
@@ -68,56 +58,46 @@ class _TetRest:
         return self._data
 
 
-def analyze_tets(paths, output, xdmf, *, reference, fields, store, compression, kabsch,
-                 progress, command, pairs, vertex_average, started):
-    """:func:`clothtool.analysis.sequence.analyze_sequence` of the tetrahedral sequence
-    ``paths``, which has parsed ``store`` and ``compression`` and checked ``output`` (and its
-    XDMF path ``xdmf``); the other arguments as there. Returns its AnalysisSummary."""
+def run_tet_analysis(plan, *, progress=False, command=None, started=None):
+    """Run the :class:`~clothtool.analysis.sequence.AnalysisPlan` of a tetrahedral sequence:
+    read the frames, compute, write ``plan.output`` atomically. Returns its AnalysisSummary."""
     from clothtool.analysis import sequence
-    from clothtool.io.h5 import check_not_an_input
-    from clothtool.results.slices import parse_pair_slice
-    from clothtool.results.xdmf import xdmf_text
+    from clothtool.analysis.output.xdmf import xdmf_text
 
-    check_tet_options(reference, kabsch, vertex_average)
-    fields = parse_tet_fields(fields)
-    internal = reference in ("previous", "first")
-    check_not_an_input(output, paths if internal else [*paths, reference])
-    if internal and len(paths) < 2:
-        raise InputError(f"{paths[0]}: only one frame; --reference {reference} needs at least two")
-    reader = TetFrameReader(paths)
+    started = time.perf_counter() if started is None else started
+    reader = TetFrameReader(plan.frames)
     external = None
-    if not internal:
-        if not os.path.isfile(reference):
-            raise InputError(f"--reference: {reference!r} is not previous, first or an existing "
-                             "mesh file")
-        external = reader.check_same_topology(read_tet_mesh(reference, reuse=reader.first),
-                                              reference).vertices
+    if plan.reference not in ("previous", "first"):
+        if not os.path.isfile(plan.reference):
+            raise InputError(f"{plan.reference!r} is not previous, first or an existing mesh "
+                             "file", keyword="reference")
+        external = reader.check_same_topology(read_tet_mesh(plan.reference, reuse=reader.first),
+                                              plan.reference).vertices
     rest = _TetRest(reader, external)
-    all_pairs = sequence.plan_pairs(len(paths), reference)
-    offset, stop = parse_pair_slice(pairs, len(all_pairs))
-    pairs = all_pairs[offset:stop]
+    pairs = np.array(plan.pairs, dtype=np.int64).reshape(-1, 2)
     m, n = len(reader.tets), reader.n_vertices
-    summary = sequence.AnalysisSummary(os.fspath(output), len(paths), len(pairs), 0, n, fields,
-                                       reference, 0.0, tets=m,
+    summary = sequence.AnalysisSummary(plan.output, len(plan.frames), len(pairs), 0, n,
+                                       plan.fields, plan.reference, 0.0, tets=m,
                                        ignored_cells=reader.first.other_cells)
+    compression = dict(plan.compression)
+    previous = plan.reference == "previous"
 
-    atomic = AtomicH5(output)
+    atomic = AtomicH5(plan.output)
     with atomic as h5:
-        sequence.write_common_header(h5, paths, pairs, reference, command, store, DEGENERATE_TOL)
-        h5.attrs["pair_offset"] = offset
-        h5.attrs["pairs_total"] = len(all_pairs)
+        sequence.write_common_header(h5, plan, pairs, command, DEGENERATE_TOL)
         h5.attrs["ignored_cells"] = reader.first.other_cells
         mesh = h5.create_group("mesh")
         mesh.create_dataset("tets", data=reader.tets)
         mesh.create_dataset("vertices", data=rest.vertices())
-        positions = create_pair_dataset(h5, "frame_vertices", len(paths), (n, 3), store,
-                                        compression, fillvalue=np.nan)
-        table = SummaryWriter(h5, pairs, offset, tets=True)
+        positions = create_pair_dataset(h5, "frame_vertices", len(plan.frames), (n, 3),
+                                        plan.dtype, compression, fillvalue=np.nan)
+        table = SummaryWriter(h5, pairs, plan.pair_offset, tets=True)
         group = h5.create_group("tet")
         datasets = {name: create_pair_dataset(group, name, len(pairs), (m, *TET_SHAPES[name]),
-                                              np.uint8 if name == "flags" else store, compression)
-                    for name in fields}
-        stored = np.zeros(len(paths), bool)
+                                              np.uint8 if name == "flags" else plan.dtype,
+                                              compression)
+                    for name in plan.fields}
+        stored = np.zeros(len(plan.frames), bool)
 
         def finish_pair(p, buffers, frames):  # on the writer thread, overlapping the next pair
             for index, x in frames:
@@ -127,9 +107,10 @@ def analyze_tets(paths, output, xdmf, *, reference, fields, store, compression, 
             table.add(p, buffers["stretch"], buffers["volume_ratio"], buffers["flags"])
 
         def make_buffers():
-            return allocate_fields(m, {*fields, *NEEDED}, store)
+            return allocate_fields(m, {*plan.fields, *NEEDED}, plan.dtype)
 
-        with PairWriter(datasets, make_buffers) as writer, sequence.kernel_threads_beside_writer():
+        with PairWriter(datasets, make_buffers) as writer, \
+                sequence.kernel_threads_beside_writer():
             last = (0, reader.first.vertices)
             for p, (r, d) in enumerate(_progress(pairs, progress)):
                 interrupt.check()
@@ -144,16 +125,16 @@ def analyze_tets(paths, output, xdmf, *, reference, fields, store, compression, 
                 buffers = writer.buffers()
                 # in a 'previous' sequence this frame is the next reference: its D_r⁻¹ comes
                 # from the same pass (fresh arrays: the writer thread may still read these)
-                next_rest = allocate_rest(m if reference == "previous" else 0)
+                next_rest = allocate_rest(m if previous else 0)
                 tet_fields(x, reader.tets, *ref, DEGENERATE_TOL,
                            *(buffers[name] for name in TET_FIELDS), *next_rest)
-                if reference == "previous":
+                if previous:
                     rest.put(d, next_rest)
                 _accumulate(summary, buffers)
                 writer.write(p, buffers, functools.partial(finish_pair, p, buffers,
                                                            ((r, x_ref), (d, x))))
         table.close()
-        atomic.add_sidecar(xdmf, xdmf_text(h5, os.path.basename(output)))  # renamed with it
+        atomic.add_sidecar(plan.xdmf, xdmf_text(h5, os.path.basename(plan.output)))
     summary.seconds = time.perf_counter() - started
     return summary
 

@@ -6,37 +6,23 @@ import os
 
 import numpy as np
 
-from clothtool.errors import InputError
-from clothtool.results.summary import (COLUMNS, FLAG_BITS, INT_COLUMNS, TET_COLUMNS,
-                                       TET_FLAG_BITS, TET_INT_COLUMNS, TOL, read_summary)
+from clothtool.analysis.output.summary import (COLUMNS, FLAG_BITS, INT_COLUMNS, TET_COLUMNS,
+                                               TET_FLAG_BITS, TET_INT_COLUMNS, TOL)
+from clothtool.io.result import open_result, read_summary
 
 REFERENCE_PAIRS = {"previous": "pairs (i, i+1)", "first": "pairs (0, i)", "uv": "uv rest shape"}
 TABLE = (("pair", "pair", "{:d}"), ("reference", "ref", "{:d}"), ("deformed", "def", "{:d}"),
          ("lambda1_p5", "λ1 p5", "{:.4f}"), ("lambda1_p50", "λ1 p50", "{:.4f}"),
          ("lambda1_p95", "λ1 p95", "{:.4f}"), ("lambda2_p5", "λ2 p5", "{:.4f}"),
          ("lambda2_p50", "λ2 p50", "{:.4f}"), ("lambda2_p95", "λ2 p95", "{:.4f}"),
-         ("J_p5", "J p5", "{:.4f}"), ("J_p50", "J p50", "{:.4f}"), ("J_p95", "J p95", "{:.4f}"),
+         ("area_ratio_p5", "area p5", "{:.4f}"), ("area_ratio_p50", "area p50", "{:.4f}"),
+         ("area_ratio_p95", "area p95", "{:.4f}"),
          ("compressed", "compr.", "{:.1%}"), ("stretched", "stretch.", "{:.1%}"),
          ("flagged", "flagged", "{:d}"))
 TET_TABLE = (*TABLE[:6], ("lambda3_p5", "λ3 p5", "{:.4f}"), ("lambda3_p50", "λ3 p50", "{:.4f}"),
-             ("lambda3_p95", "λ3 p95", "{:.4f}"), *TABLE[9:], ("inverted", "inverted", "{:d}"))
-
-
-def open_result(path):
-    """An open ``h5py.File`` of a clothtool result, or InputError naming the file."""
-    import h5py
-
-    path = os.fspath(path)
-    if not os.path.isfile(path):
-        raise InputError(f"{path}: no such file")
-    try:
-        h5 = h5py.File(path, "r")
-    except OSError:
-        raise InputError(f"{path}: not an HDF5 file") from None
-    if "pairs" not in h5 or "mesh" not in h5:
-        h5.close()
-        raise InputError(f"{path}: not a clothtool analysis result (no /pairs or /mesh)")
-    return h5
+             ("lambda3_p95", "λ3 p95", "{:.4f}"), ("volume_ratio_p5", "J p5", "{:.4f}"),
+             ("volume_ratio_p50", "J p50", "{:.4f}"), ("volume_ratio_p95", "J p95", "{:.4f}"),
+             *TABLE[12:], ("inverted", "inverted", "{:d}"))
 
 
 def _text(value):
@@ -87,12 +73,12 @@ def describe(path):
     lines.append(f"  flagged:   {int(summary['flagged'].sum())} {element}-pairs ({flagged})")
     if tets:
         lines += ["", "per pair: percentiles of the principal stretches λ1 ≥ λ2 ≥ λ3 (λ3 < 0: "
-                  "inverted) and the volume ratio J; compr./stretch. = fraction of tetrahedra "
+                  "inverted) and the volume ratio J = det F; compr./stretch. = fraction of tetrahedra "
                   f"with λ3 < 1 − {TOL:g} / λ1 > 1 + {TOL:g}"]
     else:
         lines += ["", "per pair: percentiles of the principal stretches λ1 ≥ λ2 and the area "
-                  f"ratio J; compr./stretch. = fraction of triangles with λ2 < 1 − {TOL:g} / "
-                  f"λ1 > 1 + {TOL:g}"]
+                  f"ratio λ1λ2 (area); compr./stretch. = fraction of triangles with λ2 < 1 − "
+                  f"{TOL:g} / λ1 > 1 + {TOL:g}"]
     lines.append(_table(summary, TET_TABLE if tets else TABLE))
     return "\n".join(lines)
 
@@ -108,7 +94,7 @@ def _table(summary, table):
 
 def summary_csv(path):
     """The ``/summary`` of the result at ``path`` as CSV text: a header row of
-    :data:`~clothtool.results.summary.COLUMNS`, then one row per pair (floats in full
+    :data:`~clothtool.analysis.output.summary.COLUMNS`, then one row per pair (floats in full
     precision)."""
     with open_result(path) as h5:
         summary = read_summary(h5)

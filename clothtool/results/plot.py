@@ -1,8 +1,8 @@
 """``clothtool plot``: one figure that shows a result at a glance (matplotlib, optional extra).
 
 Four panels: (1) the 5th/50th/95th percentiles of the principal stretches λ1, λ2 and
-(2) of the area ratio J against the deformed frame, from ``/summary``; (3) histograms of
-λ1, λ2 and J over the triangles of the pairs (at most :data:`HISTOGRAM_PAIRS` pairs, evenly
+(2) of the area ratio λ1λ2 against the deformed frame, from ``/summary``; (3) histograms of
+λ1, λ2 and the area ratio over the triangles of the pairs (at most :data:`HISTOGRAM_PAIRS` pairs, evenly
 spaced); (4) one field of one pair drawn on its deformed mesh, projected on the mesh's
 best-fit plane (the two leading right-singular vectors of the centred positions). A
 tetrahedral result shows λ3 too, the volume ratio, and its boundary surface in panel 4.
@@ -15,8 +15,7 @@ import numpy as np
 from clothtool.errors import InputError
 from clothtool.io.atomic import atomic_path
 from clothtool.results.export import field_values
-from clothtool.results.info import open_result
-from clothtool.results.summary import read_summary
+from clothtool.io.result import open_result, read_summary
 
 HISTOGRAM_PAIRS = 100
 MISSING = "clothtool plot needs matplotlib: pip install 'clothtool[plot]'"
@@ -58,7 +57,7 @@ def _histogram_data(h5, group, ratio):
         for k in range(s.shape[1]):
             out[f"λ{k + 1}"] = s[:, k]
     if ratio in h5.get(group, {}):
-        out["J"] = np.concatenate([h5[f"{group}/{ratio}"][p] for p in picks])
+        out[ratio.replace("_", " ")] = np.concatenate([h5[f"{group}/{ratio}"][p] for p in picks])
     return {k: v[np.isfinite(v)] for k, v in out.items()}, len(picks)
 
 
@@ -115,10 +114,10 @@ def plot_result(h5_path, output, *, pair=None, field=None, component=0, dpi=120)
     ax.set(xlabel="deformed frame", ylabel="principal stretch", title="Principal stretches per pair")
     ax.legend(fontsize=8)
     ax = axes[0, 1]
-    _band(ax, t, summary, "J", "J", "tab:green")
+    _band(ax, t, summary, ratio, ratio.replace("_", " "), "tab:green")
     ax.axhline(1.0, color="k", lw=0.6)
-    ratio_label = ("volume ratio J = det F", "Volume ratio") if tets else ("area ratio J = λ1·λ2",
-                                                                          "Area ratio")
+    ratio_label = ("volume ratio det F", "Volume ratio") if tets else ("area ratio λ1·λ2",
+                                                                      "Area ratio")
     ax.set(xlabel="deformed frame", ylabel=ratio_label[0], title=f"{ratio_label[1]} per pair")
     ax.legend(fontsize=8)
 
@@ -127,7 +126,8 @@ def plot_result(h5_path, output, *, pair=None, field=None, component=0, dpi=120)
         lo = min(v.min() for v in hist.values() if v.size)
         hi = max(v.max() for v in hist.values() if v.size)
         bins = np.linspace(lo, hi if hi > lo else lo + 1e-6, 60)
-        colors = {"λ1": "tab:red", "λ2": "tab:blue", "λ3": "tab:purple", "J": "tab:green"}
+        colors = {"λ1": "tab:red", "λ2": "tab:blue", "λ3": "tab:purple", "area ratio": "tab:green",
+                  "volume ratio": "tab:green"}
         for label, v in hist.items():
             ax.hist(v, bins=bins, histtype="step", lw=1.5, color=colors[label], label=label)
         ax.set_yscale("log")

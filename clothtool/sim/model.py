@@ -1,13 +1,15 @@
 """The Model: everything about a run that does not change while it runs.
 
-Rest data per triangle (D_m⁻¹, rest area), lumped masses m_v = Σ ρA/3, the
+Rest data per triangle (D_r⁻¹, rest area), lumped masses m_v = Σ ρA/3, the
 energies that are switched on and their parameters, per-hinge bending data,
 pins, colliders, and the block pattern of the system matrix with each element's
-block slots. A term whose stiffness is zero is left out entirely (no hinges,
+block slots, and the spring network of the spring-based methods (built on first use,
+then kept). A term whose stiffness is zero is left out entirely (no hinges,
 no pattern blocks, no kernels), as are pins and colliders when there are none.
 """
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -26,10 +28,10 @@ DEGENERATE = 1e-12  # rest triangle area relative to its squared longest edge
 @dataclass
 class Model:
     mesh: object  # RestMesh
-    dinv: np.ndarray  # (M, 2, 2) D_m⁻¹
+    dr_inv: np.ndarray  # (M, 2, 2) D_r⁻¹
     area: np.ndarray  # (M,) rest areas
     mass: np.ndarray  # (N,) lumped masses
-    k_stretch: float
+    stretch: np.ndarray  # (4,) k_u, k_v (N/m, warp and weft), b_u, b_v (rest length factors)
     k_shear: float
     damping: float  # s
     gravity: np.ndarray  # (3,)
@@ -60,7 +62,7 @@ class Model:
 
     @property
     def has_membrane(self):
-        return self.k_stretch > 0.0 or self.k_shear > 0.0
+        return self.stretch[0] > 0.0 or self.stretch[1] > 0.0 or self.k_shear > 0.0
 
     @property
     def has_pins(self):
@@ -69,6 +71,14 @@ class Model:
     @property
     def has_colliders(self):
         return len(self.spheres) + len(self.planes) > 0
+
+    @cached_property
+    def springs(self):
+        """The spring network of ``mass-spring``, ``pbd``, ``xpbd`` and ``projective``
+        (:func:`~clothtool.sim.solvers.springs.build_springs`), built once."""
+        from clothtool.sim.solvers.springs import build_springs
+
+        return build_springs(self)
 
     def initial_state(self):
         """Rest positions at rest, pushed out of colliders."""
@@ -88,8 +98,8 @@ def build_model(config):
     faces = mesh.faces
     if faces.min() < 0 or faces.max() >= n:
         raise InputError(f"{config.mesh.ply}: face index out of range")
-    dm = rest_edge_matrices(mesh)
-    det = dm[:, 0, 0] * dm[:, 1, 1] - dm[:, 0, 1] * dm[:, 1, 0]
+    dr = rest_edge_matrices(mesh)
+    det = dr[:, 0, 0] * dr[:, 1, 1] - dr[:, 0, 1] * dr[:, 1, 0]
     area = 0.5 * np.abs(det)
     edges = mesh.rest3d[faces] - mesh.rest3d[np.roll(faces, 1, axis=1)]
     longest = np.max(np.einsum("mkp,mkp->mk", edges, edges), axis=1)
@@ -97,7 +107,7 @@ def build_model(config):
     if len(bad):
         raise InputError(f"mesh: rest triangle {bad[0]} is degenerate (zero area in the rest "
                          f"{'uv' if mesh.uv is not None else 'mesh'}); {len(bad)} such triangles")
-    dinv = np.linalg.inv(dm)
+    dr_inv = np.linalg.inv(dr)
 
     mat = config.material
     mass = np.zeros(n)
@@ -130,8 +140,8 @@ def build_model(config):
         scatter_blocks(blocks, hinge_slots, constant)
 
     return Model(
-        mesh=mesh, dinv=dinv, area=area, mass=mass,
-        k_stretch=mat.stretch, k_shear=mat.shear, damping=mat.damping,
+        mesh=mesh, dr_inv=dr_inv, area=area, mass=mass,
+        stretch=_warp_weft(mat, mesh), k_shear=mat.shear, damping=mat.damping,
         gravity=np.asarray(config.scene.gravity, dtype=np.float64),
         bend_model=bend_model, hinge=hinge, hinge_rest_angle=rest_angle, hinge_coef=coef,
         hinge_weights=weights, pinned=pinned, free=free, kind=kind,
@@ -140,6 +150,18 @@ def build_model(config):
         collision_margin=config.scene.collision_margin,
         pattern=pattern, tri_slots=tri_slots, hinge_slots=hinge_slots, constant_hessian=constant,
     )
+
+
+def _warp_weft(material, mesh):
+    """(k_u, k_v, b_u, b_v) from material.stretch and material.rest_stretch (a number: both)."""
+    k = np.broadcast_to(np.asarray(material.stretch, dtype=np.float64), 2)
+    b = np.broadcast_to(np.asarray(material.rest_stretch, dtype=np.float64), 2)
+    if mesh.uv is None:  # no u and v: each triangle is measured in its own tangent frame
+        for key, pair in (("stretch", k), ("rest_stretch", b)):
+            if pair[0] != pair[1]:
+                raise InputError(f"material.{key}: different warp and weft values need rest uv "
+                                 "(a grid, or a PLY with texture coordinates)")
+    return np.concatenate([k, b])
 
 
 def _bending(mesh, area, material):

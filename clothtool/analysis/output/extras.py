@@ -3,17 +3,15 @@
 - ``/frame_vertices`` (T, N, 3), storage dtype, chunked per frame: the positions of every
   frame, written once, as it is read (frames a ``--pairs`` slice does not read stay NaN);
   the XDMF's geometry.
-- ``/summary``: :mod:`clothtool.results.summary`.
-- ``/vertex/<field>_avg`` (P, N, …): :mod:`clothtool.results.vertex_average`, if asked for.
+- ``/summary``: :mod:`clothtool.analysis.output.summary`.
+- ``/vertex/<field>_avg`` (P, N, …): :mod:`clothtool.analysis.output.vertex_average`, if asked for.
 """
 
 import numpy as np
 
 from clothtool.io.h5 import create_pair_dataset
-from clothtool.results.summary import SummaryWriter
-from clothtool.results.vertex_average import SUFFIX, VertexAverager, rest_areas
-
-NEEDED = ("stretch", "area_ratio", "flags")  # face fields computed for /summary even if not stored
+from clothtool.analysis.output.summary import SummaryWriter
+from clothtool.analysis.output.vertex_average import SUFFIX, VertexAverager, rest_areas
 
 
 class PairExtras:
