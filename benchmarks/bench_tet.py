@@ -14,7 +14,8 @@ I/O floor.
 - readers: one frame of that mesh in every format, ms per frame through clothtool's readers;
 - end to end: ``clothtool analyze`` of 50 legacy binary VTK frames (whole command, numba cache
   warm) against the I/O floor (tet_floor_io.py: read the vertex blocks, write the same
-  datasets), medians of interleaved runs.
+  datasets), medians of interleaved runs; peak memory for 50 and 200 frames (the same frames
+  linked four times).
 """
 
 import os
@@ -25,7 +26,8 @@ import time
 import numba
 import numpy as np
 
-from benchmarks.common import PYTHON, clothtool_cmd, markdown_table, run_timed, write_csv
+from benchmarks.common import (PYTHON, clothtool_cmd, markdown_table, peak_rss_mb, run_timed,
+                               write_csv)
 from clothtool.analysis.tet import (DEGENERATE_TOL, TET_FIELDS, allocate_fields, allocate_rest,
                                     rest_from_positions, tet_fields)
 
@@ -280,6 +282,16 @@ def run(out_dir):
                 "tet_pairs_per_s": m * pairs / small, "vs_floor": small / floor_s,
                 "file_mb": os.path.getsize(work / "s.h5") / 1e6})
 
+    long_seq = work / "tet200"
+    long_seq.mkdir(exist_ok=True)
+    for k in range(4 * FRAMES):
+        link = long_seq / f"f{k}.vtk"
+        if not link.exists():
+            os.symlink((seq / f"f{k % FRAMES}.vtk").resolve(), link)
+    small_cmd = ["analyze", "-o", work / "m.h5", "-q", "--fields", "stretch,volume_ratio,flags"]
+    memory = [{"frames": f, "peak_mb": peak_rss_mb(clothtool_cmd(small_cmd[0], folder, *small_cmd[1:]))}
+              for f, folder in ((FRAMES, seq), (4 * FRAMES, long_seq))]
+
     kcols = ["route", "ms", "tets_per_s", "speedup_vs_numpy", "err_F", "err_stretch", "err_R",
              "err_U", "err_volume_ratio"]
     ecols = ["route", "seconds", "tet_pairs_per_s", "vs_floor", "file_mb"]
@@ -299,6 +311,8 @@ def run(out_dir):
                  f"pages flushed before each; load average {os.getloadavg()[0]:.1f} at the end "
                  f"on {os.cpu_count()} cores.\n\n")
         fh.write(markdown_table(e2e, ecols))
+        fh.write("\n### Peak memory (`--fields stretch,volume_ratio,flags`)\n\n")
+        fh.write(markdown_table(memory, ["frames", "peak_mb"]))
     for result in [*work.glob("*.h5"), *work.glob("*.xdmf")]:
         result.unlink()
     print((out_dir / "tet.md").read_text())

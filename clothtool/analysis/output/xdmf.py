@@ -16,7 +16,8 @@ ParaView 5.11) cannot read a ``HyperSlab`` DataItem, while the legacy "XDMF Read
 (vtkXdmfReader) reads both forms; with views, both readers load every step.
 
 Cell topologies are listed in :data:`TOPOLOGIES` (triangles ``/mesh/faces`` with cell data
-``/face``; a tetrahedral result's ``/mesh/tets`` with cell data ``/tet``). A result with several of them gets, per step, a spatial collection of one grid each.
+``/face``; a tetrahedral result's ``/mesh/tets`` with cell data ``/tet``). A result with
+several of them gets, per step, a spatial collection of one grid each.
 """
 
 import os
