@@ -111,7 +111,10 @@ def _read_meshio(path, fmt, label):
     if not tets or not sum(len(t) for t in tets):
         found = ", ".join(f"{n} {kind}" for kind, n in other.items()) or "none"
         raise InputError(f"{path}: no tetrahedra in the file (cells: {found})")
-    tets = np.concatenate(tets).astype(np.int64, copy=False).reshape(-1, 4)
+    try:
+        tets = np.concatenate(tets).astype(np.int64, copy=False).reshape(-1, 4)
+    except (ValueError, TypeError) as exc:  # blocks of another shape than (k, 4)
+        raise InputError(f"{path}: tetrahedra of an unexpected shape: {_reason(exc)}") from None
     return TetMesh(points, _checked_indices(path, tets, len(points)), sum(other.values()))
 
 
@@ -128,7 +131,7 @@ _COMMENT = re.compile(rb"#[^\n]*")
 
 
 def _numbers(path, data, what):
-    """Header ints and body tokens of a TetGen file (comments stripped)."""
+    """The whitespace-separated tokens of a TetGen file, comments stripped."""
     tokens = _COMMENT.sub(b"", data).split()
     if not tokens:
         raise InputError(f"{path}: empty {what} file")
