@@ -145,20 +145,14 @@ def edit(draw):
     return (value % (1 << (8 * size))).to_bytes(size, order)
 
 
-@st.composite
-def mutated(draw, files):
-    """A seed file with 1-8 edits (overwrite, insert, delete) and maybe truncated. An edit
-    lands in the header, anywhere in the body, or in the last quarter (the face block)."""
-    name = draw(st.sampled_from(sorted(files)))
-    data = bytearray(files[name])
-    header_end = data.index(b"end_header") + len(b"end_header\n")
+def edited(draw, data, place):
+    """``data`` with 1-8 edits (overwrite, insert, delete) at offsets drawn by ``place(data)``
+    (None: no edit this time), and maybe truncated."""
+    data = bytearray(data)
     for _ in range(draw(st.integers(1, 8))):
-        where = draw(st.sampled_from(["header", "body", "tail"]))
-        lo, hi = {"header": (0, header_end), "body": (header_end, len(data)),
-                  "tail": (max(header_end, len(data) * 3 // 4), len(data))}[where]
-        if hi <= lo:
+        at = place(data)
+        if at is None:
             continue
-        at = draw(st.integers(lo, hi - 1))
         kind = draw(st.sampled_from(["overwrite", "insert", "delete"]))
         if kind == "delete":
             del data[at:at + draw(st.integers(1, 4))]
@@ -170,7 +164,23 @@ def mutated(draw, files):
             data[at:at] = new
     if draw(st.integers(0, 3)) == 0:
         data = data[:draw(st.integers(0, len(data)))]
-    return name, bytes(data)
+    return bytes(data)
+
+
+@st.composite
+def mutated(draw, files):
+    """A seed file with 1-8 edits and maybe truncated (:func:`edited`). An edit lands in the
+    header, anywhere in the body, or in the last quarter (the face block)."""
+    name = draw(st.sampled_from(sorted(files)))
+    header_end = files[name].index(b"end_header") + len(b"end_header\n")
+
+    def place(data):
+        where = draw(st.sampled_from(["header", "body", "tail"]))
+        lo, hi = {"header": (0, header_end), "body": (header_end, len(data)),
+                  "tail": (max(header_end, len(data) * 3 // 4), len(data))}[where]
+        return draw(st.integers(lo, hi - 1)) if hi > lo else None
+
+    return name, edited(draw, files[name], place)
 
 
 TOKENS = ["0", "-1", "1", "3", "255", "4294967295", "1000000000000", "99999999999999999999",

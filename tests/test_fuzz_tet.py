@@ -11,7 +11,7 @@ import pytest
 from conftest import TET_VARIANTS, tet_grid, write_tet_file
 from hypothesis import given
 from hypothesis import strategies as st
-from test_fuzz import FUZZ, HANG_SECONDS, edit
+from test_fuzz import FUZZ, HANG_SECONDS, edited
 
 from clothtool.errors import InputError
 from clothtool.io.tetmesh import TetMesh, read_tet_mesh
@@ -95,23 +95,10 @@ def test_random_bytes(folder, seeds, variant, data):
 
 @st.composite
 def mutated(draw, seeds):
-    """A seed file with 1-8 edits (overwrite, insert, delete), maybe truncated."""
+    """A seed file with 1-8 edits anywhere, maybe truncated (:func:`test_fuzz.edited`)."""
     variant = draw(st.sampled_from(sorted(seeds)))
-    data = bytearray(seeds[variant][1])
-    for _ in range(draw(st.integers(1, 8))):
-        at = draw(st.integers(0, len(data) - 1))
-        kind = draw(st.sampled_from(["overwrite", "insert", "delete"]))
-        if kind == "delete":
-            del data[at:at + draw(st.integers(1, 4))]
-            continue
-        new = draw(edit())
-        if kind == "overwrite":
-            data[at:at + len(new)] = new
-        else:
-            data[at:at] = new
-    if draw(st.integers(0, 3)) == 0:
-        data = data[:draw(st.integers(0, len(data)))]
-    return variant, bytes(data)
+    data = seeds[variant][1]
+    return variant, edited(draw, data, lambda d: draw(st.integers(0, len(d) - 1)) if d else None)
 
 
 @FUZZ

@@ -303,11 +303,10 @@ def kernel_threads_beside_writer():
         numba.set_num_threads(threads)
 
 
-def _stream_pairs(pairs, reader, rest, writer, summary, kernel_plan, progress, extras, variant):
-    """Compute every pair, one frame in memory at a time, handing results to ``writer``."""
-    faces = reader.faces
-    x_uv = rest.uv_positions() if variant and rest.reference == "uv" else None
-    last = (0, reader.first.vertices)  # the frame read most recently, reused as a reference
+def pair_frames(pairs, reader, rest, progress):
+    """(p, r, d, x_r, rest data of r, x_d) for every pair (r, d), one frame in memory at a time:
+    the frame read last is reused when the next pair names it again."""
+    last = (0, reader.first.vertices)
     for p, (r, d) in enumerate(_progress(pairs, progress)):
         interrupt.check()
         r, d = int(r), int(d)
@@ -318,6 +317,14 @@ def _stream_pairs(pairs, reader, rest, writer, summary, kernel_plan, progress, e
         ref = rest.get(r, x_ref)
         x = last[1] if last[0] == d else reader.positions(d)
         last = (d, x)
+        yield p, r, d, x_ref, ref, x
+
+
+def _stream_pairs(pairs, reader, rest, writer, summary, kernel_plan, progress, extras, variant):
+    """Compute every pair, one frame in memory at a time, handing results to ``writer``."""
+    faces = reader.faces
+    x_uv = rest.uv_positions() if variant and rest.reference == "uv" else None
+    for p, r, d, x_ref, ref, x in pair_frames(pairs, reader, rest, progress):
         buffers = writer.buffers()
         kernel = (*ref, DEGENERATE_TOL, kernel_plan.starts, kernel_plan.needs,
                   buffers["kernel/out"], buffers["kernel/out_flags"])

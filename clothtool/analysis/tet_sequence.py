@@ -12,7 +12,6 @@ import time
 
 import numpy as np
 
-from clothtool import interrupt
 from clothtool.analysis.fields import FIELDS_TET
 from clothtool.analysis.output.summary import SummaryWriter
 from clothtool.analysis.tet import (DEGENERATE_TOL, TET_FIELDS, TET_SHAPES, allocate_fields,
@@ -111,17 +110,7 @@ def run_tet_analysis(plan, *, progress=False, command=None, started=None):
 
         with PairWriter(datasets, make_buffers) as writer, \
                 sequence.kernel_threads_beside_writer():
-            last = (0, reader.first.vertices)
-            for p, (r, d) in enumerate(_progress(pairs, progress)):
-                interrupt.check()
-                r, d = int(r), int(d)
-                if r == sequence.EXTERNAL:
-                    x_ref = rest.vertices()
-                else:
-                    x_ref = last[1] if last[0] == r else reader.positions(r)
-                ref = rest.get(r, x_ref)
-                x = last[1] if last[0] == d else reader.positions(d)
-                last = (d, x)
+            for p, r, d, x_ref, ref, x in sequence.pair_frames(pairs, reader, rest, progress):
                 buffers = writer.buffers()
                 # in a 'previous' sequence this frame is the next reference: its D_r⁻¹ comes
                 # from the same pass (fresh arrays: the writer thread may still read these)
@@ -146,10 +135,3 @@ def _accumulate(summary, buffers):
         summary.stretch_min = float(np.fmin(summary.stretch_min, np.nanmin(s[:, 2])))
     summary.flagged += int(np.count_nonzero(buffers["flags"]))
 
-
-def _progress(pairs, enabled):
-    if not enabled:
-        return pairs
-    from tqdm import tqdm
-
-    return tqdm(pairs, desc="analyze", unit="pair", leave=False)

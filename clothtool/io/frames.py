@@ -97,15 +97,22 @@ def _one_format(paths, what):
 class FrameReader:
     """Reads the frames of a sequence against the topology of the first.
 
-    Every frame must have the first frame's vertex count and faces; a face block
-    that is byte-identical to the first frame's is not parsed again.
+    Every frame must have the first frame's vertex count and cells (``faces``; ``tets`` for
+    :class:`~clothtool.io.tetmesh.TetFrameReader`); a face block that is byte-identical to the
+    first frame's is not parsed again.
     """
+
+    cells, cell_word = "faces", "faces"
 
     def __init__(self, paths):
         self.paths = list(paths)
-        self.first = read_mesh(self.paths[0])
-        if len(self.first.faces) == 0:
-            raise InputError(f"{self.paths[0]}: mesh has no faces")
+        self.first = self.read(self.paths[0])
+        if len(getattr(self.first, self.cells)) == 0:
+            raise InputError(f"{self.paths[0]}: mesh has no {self.cell_word}")
+
+    @staticmethod
+    def read(path, reuse=None):
+        return read_mesh(path, reuse=reuse)
 
     @property
     def faces(self):
@@ -116,11 +123,10 @@ class FrameReader:
         return len(self.first.vertices)
 
     def mesh(self, i):
-        """The mesh (:class:`~clothtool.io.ply.PlyMesh`) of frame ``i``, checked against frame 0."""
+        """The mesh of frame ``i``, checked against frame 0."""
         if i == 0:
             return self.first
-        return self.check_same_topology(read_mesh(self.paths[i], reuse=self.first),
-                                        self.paths[i])
+        return self.check_same_topology(self.read(self.paths[i], reuse=self.first), self.paths[i])
 
     def positions(self, i):
         """(N, 3) float64 positions of frame ``i``."""
@@ -131,6 +137,7 @@ class FrameReader:
         if len(mesh.vertices) != self.n_vertices:
             raise InputError(f"{path}: {len(mesh.vertices)} vertices, but {first} has "
                              f"{self.n_vertices}; frames must correspond vertex by vertex")
-        if mesh.faces is not self.first.faces and not np.array_equal(mesh.faces, self.first.faces):
-            raise InputError(f"{path}: faces differ from those of {first}")
+        cells, first_cells = getattr(mesh, self.cells), getattr(self.first, self.cells)
+        if cells is not first_cells and not np.array_equal(cells, first_cells):
+            raise InputError(f"{path}: {self.cell_word} differ from those of {first}")
         return mesh

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from clothtool.errors import InputError
-from clothtool.io.frames import TET_EXTENSIONS
+from clothtool.io.frames import TET_EXTENSIONS, FrameReader
 
 FORMATS = dict(zip(TET_EXTENSIONS, (("vtu", "VTK XML unstructured grid"),
                                      ("vtk", "legacy VTK file"), ("gmsh", "Gmsh mesh"),
@@ -221,40 +221,19 @@ def _read_tetgen(path, reuse):
     return TetMesh(vertices, tets, 0, ele)
 
 
-class TetFrameReader:
+class TetFrameReader(FrameReader):
     """Reads the frames of a tetrahedral sequence against the first: the same vertex count
     and the same tetrahedra (InputError naming both files otherwise)."""
 
-    def __init__(self, paths):
-        self.paths = list(paths)
-        self.first = read_tet_mesh(self.paths[0])
+    cells, cell_word = "tets", "tetrahedra"
+
+    @staticmethod
+    def read(path, reuse=None):
+        return read_tet_mesh(path, reuse=reuse)
 
     @property
     def tets(self):
         return self.first.tets
-
-    @property
-    def n_vertices(self):
-        return len(self.first.vertices)
-
-    def mesh(self, i):
-        if i == 0:
-            return self.first
-        return self.check_same_topology(read_tet_mesh(self.paths[i], reuse=self.first),
-                                        self.paths[i])
-
-    def positions(self, i):
-        """(N, 3) float64 positions of frame ``i``."""
-        return self.mesh(i).vertices
-
-    def check_same_topology(self, mesh, path):
-        first = self.paths[0]
-        if len(mesh.vertices) != self.n_vertices:
-            raise InputError(f"{path}: {len(mesh.vertices)} vertices, but {first} has "
-                             f"{self.n_vertices}; frames must correspond vertex by vertex")
-        if mesh.tets is not self.first.tets and not np.array_equal(mesh.tets, self.first.tets):
-            raise InputError(f"{path}: tetrahedra differ from those of {first}")
-        return mesh
 
 
 def boundary_faces(x, tets):
