@@ -14,8 +14,9 @@ import numpy as np
 
 from clothtool.analysis.fields import FIELDS_TET
 from clothtool.analysis.output.summary import SummaryWriter
-from clothtool.analysis.tet import (DEGENERATE_TOL, TET_FIELDS, TET_SHAPES, allocate_fields,
-                                    allocate_rest, rest_from_positions, tet_fields)
+from clothtool.analysis.fields import field as registry_field
+from clothtool.analysis.tet import (DEGENERATE_TOL, KernelPlan, allocate_rest,
+                                    rest_from_positions, tet_fields, tet_fields_and_next_rest)
 from clothtool.errors import InputError
 from clothtool.io.h5 import AtomicH5, PairWriter, create_pair_dataset
 from clothtool.io.tetmesh import TetFrameReader, read_tet_mesh
@@ -92,7 +93,8 @@ def run_tet_analysis(plan, *, progress=False, command=None, started=None):
                                         plan.dtype, compression, fillvalue=np.nan)
         table = SummaryWriter(h5, pairs, plan.pair_offset, tets=True)
         group = h5.create_group("tet")
-        datasets = {name: create_pair_dataset(group, name, len(pairs), (m, *TET_SHAPES[name]),
+        datasets = {name: create_pair_dataset(group, name, len(pairs),
+                                              (m, *registry_field(name, "tet").shape),
                                               np.uint8 if name == "flags" else plan.dtype,
                                               compression)
                     for name in plan.fields}
@@ -105,20 +107,26 @@ def run_tet_analysis(plan, *, progress=False, command=None, started=None):
                     stored[index] = True
             table.add(p, buffers["stretch"], buffers["volume_ratio"], buffers["flags"])
 
+        kernel_plan = KernelPlan(m, {*plan.fields, *NEEDED})
+
         def make_buffers():
-            return allocate_fields(m, {*plan.fields, *NEEDED}, plan.dtype)
+            out, out_flags, views = kernel_plan.allocate(plan.dtype)
+            return {**views, "kernel/out": out, "kernel/out_flags": out_flags}
 
         with PairWriter(datasets, make_buffers) as writer, \
                 sequence.kernel_threads_beside_writer():
             for p, r, d, x_ref, ref, x in sequence.pair_frames(pairs, reader, rest, progress):
                 buffers = writer.buffers()
-                # in a 'previous' sequence this frame is the next reference: its D_r⁻¹ comes
-                # from the same pass (fresh arrays: the writer thread may still read these)
-                next_rest = allocate_rest(m if previous else 0)
-                tet_fields(x, reader.tets, *ref, DEGENERATE_TOL,
-                           *(buffers[name] for name in TET_FIELDS), *next_rest)
+                kernel = (x, reader.tets, *ref, DEGENERATE_TOL, kernel_plan.starts,
+                          kernel_plan.needs, buffers["kernel/out"], buffers["kernel/out_flags"])
                 if previous:
+                    # this frame is the next reference: its D_r⁻¹ from the same pass (fresh
+                    # arrays: the writer thread may still read these)
+                    next_rest = allocate_rest(m)
+                    tet_fields_and_next_rest(*kernel, *next_rest)
                     rest.put(d, next_rest)
+                else:
+                    tet_fields(*kernel)
                 _accumulate(summary, buffers)
                 writer.write(p, buffers, functools.partial(finish_pair, p, buffers,
                                                            ((r, x_ref), (d, x))))
