@@ -138,8 +138,6 @@ NAMES_3D = tuple(dict.fromkeys(f.name for f in REGISTRY if f.kernel not in ("2d"
                                and f.name != "flags"))
 """Names that only the 3D variant (``kabsch=True``) stores; ``flags`` selects those of every group."""
 AVERAGEABLE = tuple(f.name for f in FIELDS_2D if f.averageable)
-SUMMARY_SOURCES = tuple(f.name for f in FIELDS_2D if f.summary)
-"""2D fields computed for ``/summary`` even when not stored."""
 
 
 def field(name, group="face"):
