@@ -28,8 +28,8 @@ import numpy as np
 
 from benchmarks.common import (PYTHON, clothtool_cmd, markdown_table, peak_rss_mb, run_timed,
                                write_csv)
-from clothtool.analysis.tet import (DEGENERATE_TOL, TET_FIELDS, allocate_fields, allocate_rest,
-                                    rest_from_positions, tet_fields)
+from clothtool.analysis.tet import (DEGENERATE_TOL, TET_FIELDS, KernelPlan, rest_from_positions,
+                                    tet_fields)
 
 HERE = pathlib.Path(__file__).parent
 N = 32  # cubes per side: 6·32³ = 196 608 tetrahedra, 33³ = 35 937 vertices
@@ -77,9 +77,10 @@ def inverted_frame(x, tets, t=0.5, every=997):
 
 def ours(x_ref, y, tets, rest=None):
     rest = rest or rest_from_positions(x_ref, tets)
-    out = allocate_fields(len(tets), TET_FIELDS, np.float64)
-    tet_fields(y, tets, *rest, DEGENERATE_TOL, *(out[n] for n in TET_FIELDS), *allocate_rest(0))
-    return out
+    plan = KernelPlan(len(tets), TET_FIELDS)
+    out, out_flags, views = plan.allocate(np.float64)
+    tet_fields(y, tets, *rest, DEGENERATE_TOL, plan.starts, plan.needs, out, out_flags)
+    return views
 
 
 def numpy_route(x_ref, y, tets, dinv=None):
@@ -163,11 +164,11 @@ def median_seconds(fn, repeat=REPEAT):
 def kernel_rows(x, tets):
     y = inverted_frame(x, tets)
     rest = rest_from_positions(x, tets)
-    out = allocate_fields(len(tets), TET_FIELDS, np.float64)
-    empty = allocate_rest(0)
+    plan = KernelPlan(len(tets), TET_FIELDS)
+    out, out_flags, _ = plan.allocate(np.float64)
 
     def kernel():
-        tet_fields(y, tets, *rest, DEGENERATE_TOL, *(out[n] for n in TET_FIELDS), *empty)
+        tet_fields(y, tets, *rest, DEGENERATE_TOL, plan.starts, plan.needs, out, out_flags)
 
     dinv = np.linalg.inv(np.transpose(x[tets[:, :3]] - x[tets[:, 3:]], (0, 2, 1)))
     threads = numba.get_num_threads()

@@ -12,7 +12,7 @@ import sys
 import h5py
 import numpy as np
 
-from clothtool.analysis.tet import TET_SHAPES
+from clothtool.analysis.fields import FIELDS_TET
 from clothtool.io.h5 import create_pair_dataset, write_row
 
 
@@ -32,9 +32,9 @@ def main(folder, out):
     x, m = vertex_block(paths[0])
     with h5py.File(out, "w") as f:
         group = f.create_group("tet")
-        sets = {name: create_pair_dataset(group, name, len(paths) - 1, (m, *shape),
-                                          np.uint8 if name == "flags" else np.float32, {})
-                for name, shape in TET_SHAPES.items()}
+        sets = {f.name: create_pair_dataset(group, f.name, len(paths) - 1, (m, *f.shape),
+                                            np.uint8 if f.integer else np.float32, {})
+                for f in FIELDS_TET}
         positions = create_pair_dataset(f, "frame_vertices", len(paths), (len(x), 3), np.float32,
                                         {}, fillvalue=np.nan)
         write_row(positions, 0, x.astype(np.float32))

@@ -7,9 +7,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.linalg import polar
 
-from clothtool.analysis.tet import (DEGENERATE_TOL, FLAG_INVERTED, TET_FIELDS, allocate_fields,
-                                    allocate_rest, analyze_tet_pair, rest_from_positions,
-                                    tet_fields)
+from clothtool.analysis.tet import (DEGENERATE_TOL, FLAG_INVERTED, KernelPlan, allocate_rest,
+                                    analyze_tet_pair, rest_from_positions,
+                                    tet_fields_and_next_rest)
 
 FLOATS = ("F", "C", "U", "R", "strain", "stretch", "directions", "volume_ratio")
 REGULAR = np.array([[1.0, 1, 1], [1, -1, -1], [-1, 1, -1], [-1, -1, 1]])  # det D > 0
@@ -172,10 +172,12 @@ def test_float32_storage_and_next_rest(rng):
         assert r32[name].dtype == np.float32
         np.testing.assert_allclose(r32[name], r64[name], rtol=1e-6, atol=1e-6)
     # the rest data of the deformed frame, computed in the same pass, equals a fresh computation
-    out = allocate_fields(len(tets), ("stretch",), np.float64)
+    plan = KernelPlan(len(tets), ("stretch",))
+    out, out_flags, views = plan.allocate(np.float64)
     nxt = allocate_rest(len(tets))
-    tet_fields(y, tets, *rest_from_positions(x, tets), DEGENERATE_TOL,
-               *(out[n] for n in TET_FIELDS), *nxt)
+    tet_fields_and_next_rest(y, tets, *rest_from_positions(x, tets), DEGENERATE_TOL, plan.starts,
+                             plan.needs, out, out_flags, *nxt)
+    np.testing.assert_array_equal(views["stretch"], r64["stretch"])
     fresh = rest_from_positions(y, tets)
     np.testing.assert_array_equal(nxt[0], fresh[0])
     np.testing.assert_array_equal(nxt[1], fresh[1])

@@ -26,7 +26,9 @@ import numpy as np
 from numba import njit, prange
 
 from clothtool import numba_setup  # noqa: F401  (threading layer, before the first kernel)
+from clothtool.analysis import kernel_plan
 from clothtool.analysis.fields import FIELDS_2D, NAMES_2D, parse_fields
+from clothtool.analysis.kernel_plan import Slots, fill_nan
 from clothtool.geometry import DEGENERATE, DEGENERATE_TOL, NONFINITE, tangent_edge_matrix
 
 FLAG_REFERENCE_DEGENERATE = np.uint8(1)
@@ -160,27 +162,19 @@ def principal_2x2(u00, u01, u11, absdet):
 
 
 # ---------------------------------------------------------------- the plan of one pair
-# Each 2D field of the registry (clothtool.analysis.fields) has a slot: its offset in the
-# output buffer of its dtype (float fields: ``out``, the storage dtype; flags: ``out_flags``,
-# uint8), or −1 when it is not computed. Field s occupies buf[start_s : start_s + M·n_s],
-# element k at start_s + k·n_s, i.e. an (M, *shape) C-contiguous view.
-
+# Each 2D field of the registry has a slot (clothtool.analysis.kernel_plan).
 NEED_C = 1  # C = FᵀF
 NEED_POLAR = 2  # F = R·U
 NEED_PRINCIPAL = 4  # λ1, λ2 and the eigenvectors of U
-_NEED_BITS = {"C": NEED_C, "polar": NEED_POLAR, "principal": NEED_PRINCIPAL | NEED_POLAR}
 # The slot order is written here, not taken from the registry's order: numba freezes these
 # globals into its cached kernel, whose cache is keyed on this file only.
-_SLOTS = ("F", "C", "U", "R", "strain", "stretch", "directions", "area_ratio", "flags",
-          "thickness", "almansi", "hencky", "engineering", "principal_strain", "max_shear",
-          "von_mises", "directions_deformed")
-if set(_SLOTS) != set(NAMES_2D) or len(_SLOTS) != len(NAMES_2D):
-    raise ImportError("the 2D kernel's slots and the field registry's 2D fields differ: "
-                      f"{sorted(set(_SLOTS) ^ set(NAMES_2D))}")
-_SLOT = {name: s for s, name in enumerate(_SLOTS)}
-_BY_SLOT = tuple(sorted(FIELDS_2D, key=lambda f: _SLOT[f.name]))
-_SIZES = np.array([f.size for f in _BY_SLOT], np.int64)
-_N_SLOTS = len(_SLOTS)
+SLOTS = Slots("2D", ("F", "C", "U", "R", "strain", "stretch", "directions", "area_ratio", "flags",
+                     "thickness", "almansi", "hencky", "engineering", "principal_strain",
+                     "max_shear", "von_mises", "directions_deformed"),
+              FIELDS_2D, {"C": NEED_C, "polar": NEED_POLAR,
+                          "principal": NEED_PRINCIPAL | NEED_POLAR})
+_SLOT = SLOTS.index
+_FLOAT_SIZES = SLOTS.float_sizes
 # Compile-time constants of the kernel below.
 S_F, S_C, S_U, S_R = _SLOT["F"], _SLOT["C"], _SLOT["U"], _SLOT["R"]
 S_STRAIN, S_STRETCH, S_DIRECTIONS = _SLOT["strain"], _SLOT["stretch"], _SLOT["directions"]
@@ -191,40 +185,11 @@ S_PRINCIPAL_STRAIN, S_MAX_SHEAR = _SLOT["principal_strain"], _SLOT["max_shear"]
 S_VON_MISES, S_DIRECTIONS_DEFORMED = _SLOT["von_mises"], _SLOT["directions_deformed"]
 
 
-class KernelPlan:
-    """What :func:`deformation_fields` computes for M triangles: ``starts`` (int64, one per
-    registry slot, −1 = not computed), ``needs`` (bitmask of the shared quantities the
-    requested fields use), and the lengths of the two output buffers."""
+class KernelPlan(kernel_plan.KernelPlan):
+    """What :func:`deformation_fields` computes for M triangles
+    (:class:`clothtool.analysis.kernel_plan.KernelPlan` over the 2D slots)."""
 
-    def __init__(self, m, fields):
-        unknown = set(fields) - set(_SLOT)
-        if unknown:
-            raise ValueError(f"not 2D fields: {sorted(unknown)}")
-        self.m, self.fields = m, tuple(f.name for f in FIELDS_2D if f.name in fields)
-        self.starts = np.full(_N_SLOTS, -1, np.int64)
-        self.needs = 0
-        self.float_size = self.flags_size = 0
-        for s, f in enumerate(_BY_SLOT):
-            if f.name not in fields:
-                continue
-            if f.integer:
-                self.starts[s], self.flags_size = self.flags_size, self.flags_size + m * f.size
-            else:
-                self.starts[s], self.float_size = self.float_size, self.float_size + m * f.size
-            for need in f.needs:
-                self.needs |= _NEED_BITS[need]
-
-    def allocate(self, dtype):
-        """The output buffers (``out`` of ``dtype``, ``out_flags`` uint8) and a dict of their
-        (M, *shape) views by field name."""
-        out, out_flags = np.empty(self.float_size, dtype), np.empty(self.flags_size, np.uint8)
-        views = {}
-        for s, f in enumerate(_BY_SLOT):
-            start = self.starts[s]
-            if start >= 0:
-                buf = out_flags if f.integer else out
-                views[f.name] = buf[start:start + self.m * f.size].reshape(self.m, *f.shape)
-        return out, out_flags, views
+    slots = SLOTS
 
 
 # ---------------------------------------------------------------- per-field kernel lines
@@ -324,16 +289,6 @@ def _write_directions(out, i, v0, v1, basis, k):
 
 
 @njit(cache=True, inline="always")
-def _fill_nan(k, starts, out):
-    for s in range(_N_SLOTS):
-        start = starts[s]
-        if start >= 0 and s != S_FLAGS:
-            n = _SIZES[s]
-            for j in range(n):
-                out[start + k * n + j] = np.nan
-
-
-@njit(cache=True, inline="always")
 def _triangle_fields(k, a, b, c, d1x, d1y, d1z, d2x, d2y, d2z, flag, dinv, basis, starts, needs,
                      out, out_flags):
     """The requested fields of triangle k from its deformed edge matrix [[a, b], [0, c]] and
@@ -341,7 +296,7 @@ def _triangle_fields(k, a, b, c, d1x, d1y, d1z, d2x, d2y, d2z, flag, dinv, basis
     if starts[S_FLAGS] >= 0:
         out_flags[starts[S_FLAGS] + k] = flag
     if flag & NAN_FLAGS:
-        _fill_nan(k, starts, out)
+        fill_nan(k, starts, _FLOAT_SIZES, out)
         return
     # F = D_d · D_r⁻¹ with D_d = [[a, b], [0, c]]
     g00, g01, g10, g11 = dinv[k, 0, 0], dinv[k, 0, 1], dinv[k, 1, 0], dinv[k, 1, 1]

@@ -1,15 +1,15 @@
 """The registry of analysis fields: one entry per stored dataset kind.
 
 Everything else is derived from :data:`REGISTRY`: which names ``fields=`` accepts, what the
-2D kernel computes (:mod:`clothtool.analysis.deformation2d`), the HDF5 layout
+2D and tet kernels compute (:mod:`clothtool.analysis.kernel_plan`), the HDF5 layout
 (``/<group>/<name>``, shape (P, count, *shape)), the ParaView attributes, the vertex
 averages, the ``/summary`` columns and the field list of ``clothtool analyze --help``.
 
 Pure Python (no numpy, numba or h5py), so that ``clothtool --help`` stays fast.
 
 Adding a 2D field: one :class:`Field` here (``kernel="2d"``) and its writer in
-:mod:`clothtool.analysis.deformation2d`. The fields of a tetrahedral sequence (``kernel="tet"``,
-group ``tet``) are those of :mod:`clothtool.analysis.tet`.
+:mod:`clothtool.analysis.deformation2d`; a field of tetrahedral sequences (``kernel="tet"``,
+group ``tet``): one :class:`Field` and its writer in :mod:`clothtool.analysis.tet`.
 """
 
 from dataclasses import dataclass
@@ -21,8 +21,10 @@ class Field:
 
     ``group``: ``face``, ``vertex``, ``edge`` or ``tet`` (the HDF5 group and what it counts);
     ``shape``: per element; ``kernel``: ``2d`` (the tangent-frame kernel), the 3D variant's
-    ``kabsch``, ``face3d``, ``dihedral``, or ``tet`` (tetrahedral sequences); ``needs``: shared per-triangle quantities of the 2D
-    kernel it is computed from (``C``: FᵀF, ``polar``: F = R·U, ``principal``: λk and vk);
+    ``kabsch``, ``face3d``, ``dihedral``, or ``tet`` (tetrahedral sequences); ``needs``: shared
+    per-element quantities of the 2D or tet kernel it is computed from (``C``: FᵀF, ``polar``:
+    F = R·U, ``principal``: λk and vk of the 2D kernel; the tet kernel's polar split gives
+    those too);
     ``averageable``: has a vertex average ``/vertex/<name>_avg``; ``summary``: the
     ``/summary`` quantities computed from it; ``extended``: only when named (or with
     ``extended``), not in ``all``.
@@ -108,16 +110,16 @@ REGISTRY = (
           integer=True),
     # Tetrahedral sequences: clothtool.analysis.tet.
     Field("F", "tet", (3, 3), "tet", "G·D_r⁻¹, D = [p1 − p4, p2 − p4, p3 − p4]"),
-    Field("C", "tet", (3, 3), "tet", "FᵀF, right Cauchy–Green"),
+    Field("C", "tet", (3, 3), "tet", "FᵀF, right Cauchy–Green", needs=("C",)),
     Field("U", "tet", (3, 3), "tet", "stretch of the polar split F = R·U, symmetric (one "
-          "negative eigenvalue if inverted)"),
+          "negative eigenvalue if inverted)", needs=("polar",)),
     Field("R", "tet", (3, 3), "tet", "rotation of the polar split F = R·U, always proper "
-          "(det R = +1)"),
-    Field("strain", "tet", (3, 3), "tet", "Green–Lagrange E = (C − I)/2"),
+          "(det R = +1)", needs=("polar",)),
+    Field("strain", "tet", (3, 3), "tet", "Green–Lagrange E = (C − I)/2", needs=("C",)),
     Field("stretch", "tet", (3,), "tet", "principal stretches λ1 ≥ λ2 ≥ λ3 (eigenvalues of U; "
-          "λ3 < 0 if inverted)", summary=("lambda1", "lambda2", "lambda3")),
+          "λ3 < 0 if inverted)", needs=("polar",), summary=("lambda1", "lambda2", "lambda3")),
     Field("directions", "tet", (3, 3), "tet", "unit principal directions in the reference "
-          "configuration, row k for λk, sign free"),
+          "configuration, row k for λk, sign free", needs=("polar",)),
     Field("volume_ratio", "tet", (), "tet", "J = det F = deformed volume / reference volume",
           summary=("volume_ratio",)),
     Field("flags", "tet", (), "tet", "bit 0 reference degenerate, bit 1 deformed degenerate, "
@@ -136,8 +138,6 @@ NAMES_3D = tuple(dict.fromkeys(f.name for f in REGISTRY if f.kernel not in ("2d"
                                and f.name != "flags"))
 """Names that only the 3D variant (``kabsch=True``) stores; ``flags`` selects those of every group."""
 AVERAGEABLE = tuple(f.name for f in FIELDS_2D if f.averageable)
-SUMMARY_SOURCES = tuple(f.name for f in FIELDS_2D if f.summary)
-"""2D fields computed for ``/summary`` even when not stored."""
 
 
 def field(name, group="face"):

@@ -23,7 +23,7 @@ from clothtool.analysis.output.extras import PairExtras
 from clothtool.analysis.output.slices import parse_pair_slice
 from clothtool.analysis.output.vertex_average import parse_vertex_average
 from clothtool.analysis.output.xdmf import xdmf_path, xdmf_text
-from clothtool.analysis.fields import NAMES_2D, SUMMARY_SOURCES, parse_fields
+from clothtool.analysis.fields import FIELDS_2D, FIELDS_TET, NAMES_2D, parse_fields
 from clothtool.analysis.fields import field as registry_field
 from clothtool.errors import InputError
 from clothtool.io.frames import FrameReader, discover_frames, is_tet_path
@@ -87,13 +87,32 @@ class AnalysisSummary:
         return "\n".join(lines)
 
 
-class _Rest:
-    """Rest-state data of each reference, computed once and kept while it is used."""
+class RestCache:
+    """Rest-state data of the current reference, computed once (:meth:`compute`, in the
+    subclass) and kept while it is used."""
+
+    def __init__(self):
+        self._key, self._data = None, None
+
+    def put(self, index, data):
+        """Rest-state data of frame ``index`` computed elsewhere (see ``next_rest``)."""
+        self._key, self._data = index, data
+
+    def get(self, index, positions):
+        """The rest-state data of reference ``index`` whose positions are ``positions``."""
+        if self._key != index:
+            self._data = self.compute(positions)
+            self._key = index
+        return self._data
+
+
+class _Rest(RestCache):
+    """(D_r⁻¹, basis, flags) of each reference triangle mesh or of the uv rest shape."""
 
     def __init__(self, reader, reference, uv_scale):
+        super().__init__()
         self.reader, self.reference, self.uv_scale = reader, reference, uv_scale
         self.faces = reader.faces
-        self._key, self._data = None, None
         self.external = None
         if reference == "uv":
             from clothtool.io.uv import rest_uv
@@ -119,21 +138,11 @@ class _Rest:
             return self.external[1]
         return self.reader.first.vertices
 
-    def put(self, index, data):
-        """Rest-state data of frame ``index`` computed elsewhere (see ``next_rest``)."""
-        self._key, self._data = index, data
-
-    def get(self, index, positions):
-        """(D_r⁻¹, basis, flags) of reference ``index`` whose positions are ``positions``."""
-        if self._key != index:
-            if self.external is not None and self.external[0] == "uv":
-                uv = self.external[1]
-                self._data = reference_from_uv(uv.points, uv.faces, float(self.uv_scale),
-                                               DEGENERATE_TOL)
-            else:
-                self._data = reference_from_positions(positions, self.faces, DEGENERATE_TOL)
-            self._key = index
-        return self._data
+    def compute(self, positions):
+        if self.external is not None and self.external[0] == "uv":
+            uv = self.external[1]
+            return reference_from_uv(uv.points, uv.faces, float(self.uv_scale), DEGENERATE_TOL)
+        return reference_from_positions(positions, self.faces, DEGENERATE_TOL)
 
 
 def plan_pairs(n_frames, reference):
@@ -168,10 +177,11 @@ class AnalysisPlan:
     tets: bool = False  # a tetrahedral sequence (clothtool.analysis.tet_sequence)
 
     @property
-    def computed_2d(self):
-        """The 2D fields the kernel computes: those stored, averaged or summarised."""
-        wanted = {*self.fields, *self.averaged, *SUMMARY_SOURCES}
-        return tuple(n for n in NAMES_2D if n in wanted)
+    def computed(self):
+        """The fields the 2D or tet kernel computes: those stored, averaged or summarised."""
+        wanted = {*self.fields, *self.averaged}
+        return tuple(f.name for f in (FIELDS_TET if self.tets else FIELDS_2D)
+                     if f.name in wanted or f.summary)
 
 
 def plan_analysis(inputs, output, *, reference="previous", uv_scale=1.0, fields="all",
@@ -248,7 +258,7 @@ def run_analysis(plan, *, progress=False, command=None, started=None):
     m = len(reader.faces)
     summary = AnalysisSummary(plan.output, len(plan.frames), len(pairs), m, reader.n_vertices,
                               plan.fields, plan.reference, 0.0)
-    kernel_plan = KernelPlan(m, plan.computed_2d)
+    kernel_plan = KernelPlan(m, plan.computed)
     compression = dict(plan.compression)
 
     variant = None
@@ -269,14 +279,8 @@ def run_analysis(plan, *, progress=False, command=None, started=None):
                             reader.n_vertices,
                             {name: registry_field(name).shape for name in plan.averaged}, plan.dtype,
                             compression)
-        group = h5.create_group("face")
-        datasets = {}
-        for name in plan.fields:
-            if name in NAMES_2D:
-                f = registry_field(name)
-                datasets[name] = create_pair_dataset(group, name, len(pairs), (m, *f.shape),
-                                                     np.uint8 if f.integer else plan.dtype,
-                                                     compression)
+        datasets = create_field_datasets(h5, "face", [n for n in plan.fields if n in NAMES_2D],
+                                         len(pairs), m, plan.dtype, compression)
         if variant:
             datasets.update(variant.create_datasets(h5, len(pairs), plan.dtype, compression))
         with PairWriter({**datasets, **extras.datasets}, make_buffers) as writer, \
@@ -336,7 +340,8 @@ def _stream_pairs(pairs, reader, rest, writer, summary, kernel_plan, progress, e
             rest.put(d, next_rest)
         else:
             deformation_fields(x, faces, *kernel)
-        _accumulate(summary, buffers, summary.fields)
+        accumulate(summary, buffers["stretch"] if "stretch" in summary.fields else None,
+                   buffers["flags"])
         if variant:
             variant.compute(x_ref if x_uv is None else x_uv, x, buffers)
             _accumulate_3d(summary, buffers)
@@ -375,14 +380,25 @@ def write_common_header(h5, plan, pairs, command, tol=DEGENERATE_TOL):
     h5.attrs["pairs_total"] = plan.pairs_total
 
 
-def _accumulate(summary, buffers, fields):
-    if "stretch" in fields and buffers["stretch"].size:
-        s = buffers["stretch"]
-        if np.isfinite(s).any():
-            summary.stretch_max = float(np.fmax(summary.stretch_max, np.nanmax(s[:, 0])))
-            summary.stretch_min = float(np.fmin(summary.stretch_min, np.nanmin(s[:, 1])))
-    if "flags" in fields:
-        summary.flagged += int(np.count_nonzero(buffers["flags"]))
+def create_field_datasets(h5, group, names, n_pairs, m, store, compression):
+    """``/<group>/<name>`` (P, M, *shape) for the registry fields ``names`` of ``group``
+    (float fields in ``store``, integer fields uint8)."""
+    parent = h5.create_group(group)
+    datasets = {}
+    for name in names:
+        f = registry_field(name, group)
+        datasets[name] = create_pair_dataset(parent, name, n_pairs, (m, *f.shape),
+                                             np.uint8 if f.integer else store, compression)
+    return datasets
+
+
+def accumulate(summary, stretch, flags):
+    """Into ``summary``: the largest λ1 and the smallest last stretch (λ2, or λ3 of
+    tetrahedra) of a pair's (M, k) ``stretch`` (None: not reported), and its flagged count."""
+    if stretch is not None and stretch.size and np.isfinite(stretch).any():
+        summary.stretch_max = float(np.fmax(summary.stretch_max, np.nanmax(stretch[:, 0])))
+        summary.stretch_min = float(np.fmin(summary.stretch_min, np.nanmin(stretch[:, -1])))
+    summary.flagged += int(np.count_nonzero(flags))
 
 
 def _accumulate_3d(summary, buffers):

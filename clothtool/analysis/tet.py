@@ -25,6 +25,9 @@ Flags (uint8 bits): 1 reference degenerate, 2 deformed degenerate, 4 non-finite 
 16 inverted (det F < 0; fields finite). Degenerate: |det D| ≤ DEGENERATE_TOL · L³ with L the
 longest of the six edges (det D is six times the volume; a regular tetrahedron has
 |det D| = L³/√2). Where bit 1, 2 or 4 is set the float fields are NaN.
+
+What is computed is a :class:`KernelPlan` (:mod:`clothtool.analysis.kernel_plan`): one flat
+output buffer per dtype, a slot per field of the registry.
 """
 
 import math
@@ -33,7 +36,9 @@ import numpy as np
 from numba import njit, prange
 
 from clothtool import numba_setup  # noqa: F401  (threading layer, before the first kernel)
+from clothtool.analysis import kernel_plan
 from clothtool.analysis.fields import FIELDS_TET, NAMES_TET
+from clothtool.analysis.kernel_plan import Slots, fill_nan
 from clothtool.vec3 import cross, dot, load, scale, sub
 
 DEGENERATE_TOL = 1e-8
@@ -45,12 +50,8 @@ FLAG_NONFINITE = np.uint8(4)
 FLAG_INVERTED = np.uint8(16)
 NAN_FLAGS = np.uint8(7)
 
-# The kernel's output order (its arguments), checked against the registry's tet fields.
-TET_FIELDS = ("F", "C", "U", "R", "strain", "stretch", "directions", "volume_ratio", "flags")
-if TET_FIELDS != NAMES_TET:
-    raise ImportError("the tetrahedron kernel's outputs and the field registry's tet fields "
-                      f"differ: {TET_FIELDS} / {NAMES_TET}")
-TET_SHAPES = {f.name: f.shape for f in FIELDS_TET}
+TET_FIELDS = NAMES_TET
+"""Every tetrahedron field: the default of :func:`analyze_tet_pair`."""
 
 MAX_SWEEPS = 30  # 3–5 sweeps are typical: convergence is quadratic
 BLOCK = 64  # tetrahedra whose eigenproblems are solved together (vectorised)
@@ -94,7 +95,7 @@ def _store_rest(k, d1, d2, d3, det, flag, dinv, flags):
 
 def allocate_rest(m):
     """Empty (D_r⁻¹ (M, 3, 3), flags (M,)) for :func:`rest_from_positions` or the ``next_*``
-    outputs of :func:`tet_fields`."""
+    outputs of :func:`tet_fields_and_next_rest`."""
     return np.empty((m, 3, 3)), np.empty(m, np.uint8)
 
 
@@ -202,135 +203,188 @@ def _column(g1, g2, g3, dinv, k, j):
             g1[2] * a + g2[2] * b + g3[2] * c)
 
 
-@njit(cache=True, parallel=True, nogil=True)
-def tet_fields(x, tets, dinv, ref_flags, tol,
-               F, C, U, R, strain, stretch, directions, volume_ratio, flags,
-               next_dinv, next_flags):
-    """Fill the per-tetrahedron fields of one pair from deformed positions ``x`` (N, 3).
+# ---------------------------------------------------------------- the plan of one pair
+# Each tet field of the registry has a slot (clothtool.analysis.kernel_plan).
+NEED_C = 1  # C = FᵀF
+NEED_POLAR = 2  # the eigenvectors of C and from them F = R·U, λk, vk
+# The slot order is written here, not taken from the registry's order: numba freezes these
+# globals into its cached kernel, whose cache is keyed on this file only.
+SLOTS = Slots("tet", ("F", "C", "U", "R", "strain", "stretch", "directions", "volume_ratio",
+                      "flags"), FIELDS_TET, {"C": NEED_C, "polar": NEED_POLAR | NEED_C})
+_SLOT = SLOTS.index
+_FLOAT_SIZES = SLOTS.float_sizes
+# Compile-time constants of the kernel below.
+S_F, S_C, S_U, S_R = _SLOT["F"], _SLOT["C"], _SLOT["U"], _SLOT["R"]
+S_STRAIN, S_STRETCH, S_DIRECTIONS = _SLOT["strain"], _SLOT["stretch"], _SLOT["directions"]
+S_VOLUME_RATIO, S_FLAGS = _SLOT["volume_ratio"], _SLOT["flags"]
 
-    Every output is either full size (M, …) or empty (shape[0] == 0), in which case it is
-    neither computed nor written. Outputs may be float32 or float64; all arithmetic is
-    float64. ``next_*``: if full size, also the rest-state data of ``x`` (as
-    :func:`rest_from_positions`), for the next pair of a 'previous' sequence. Tetrahedra are
-    taken in blocks of :data:`BLOCK`, whose eigenproblems are solved together.
-    """
+
+class KernelPlan(kernel_plan.KernelPlan):
+    """What :func:`tet_fields` computes for M tetrahedra
+    (:class:`clothtool.analysis.kernel_plan.KernelPlan` over the tet slots)."""
+
+    slots = SLOTS
+
+
+# ---------------------------------------------------------------- per-field kernel lines
+# A 3×3 field of element k is stored row after row from out[i], i = start + 9k.
+@njit(cache=True, inline="always")
+def _put_symmetric(out, i, a00, a11, a22, a01, a02, a12):
+    """A symmetric 3×3 matrix (C, E)."""
+    out[i], out[i + 1], out[i + 2] = a00, a01, a02
+    out[i + 3], out[i + 4], out[i + 5] = a01, a11, a12
+    out[i + 6], out[i + 7], out[i + 8] = a02, a12, a22
+
+
+@njit(cache=True, inline="always")
+def _write_F(out, i, f0, f1, f2):
+    """F from its columns f0, f1, f2."""
+    for r in range(3):
+        out[i + 3 * r], out[i + 3 * r + 1], out[i + 3 * r + 2] = f0[r], f1[r], f2[r]
+
+
+@njit(cache=True, inline="always")
+def _write_strain(out, i, c00, c11, c22, c01, c02, c12):
+    """E = (C − I)/2."""
+    _put_symmetric(out, i, 0.5 * (c00 - 1.0), 0.5 * (c11 - 1.0), 0.5 * (c22 - 1.0), 0.5 * c01,
+                   0.5 * c02, 0.5 * c12)
+
+
+@njit(cache=True, inline="always")
+def _write_volume_ratio(out, i, det):
+    """J = det F."""
+    out[i] = det
+
+
+@njit(cache=True, inline="always")
+def _write_stretch(out, i, l0, l1, l2):
+    out[i], out[i + 1], out[i + 2] = l0, l1, l2
+
+
+@njit(cache=True, inline="always")
+def _write_directions(out, i, v0, v1, v2):
+    """Rows v1, v2, v3: the columns of V."""
+    for j in range(3):
+        out[i + j], out[i + 3 + j], out[i + 6 + j] = v0[j], v1[j], v2[j]
+
+
+@njit(cache=True, inline="always")
+def _write_U(out, i, l0, l1, l2, v0, v1, v2):
+    """U = V·diag(λ)·Vᵀ = Σ λk vk vkᵀ."""
+    for r in range(3):
+        for j in range(r, 3):
+            urj = l0 * v0[r] * v0[j] + l1 * v1[r] * v1[j] + l2 * v2[r] * v2[j]
+            out[i + 3 * r + j] = urj
+            out[i + 3 * j + r] = urj
+
+
+@njit(cache=True, inline="always")
+def _write_R(out, i, v0, v1, v2, w0, w1, w2):
+    """R = W·Vᵀ = Σ wk vkᵀ."""
+    for r in range(3):
+        for j in range(3):
+            out[i + 3 * r + j] = w0[r] * v0[j] + w1[r] * v1[j] + w2[r] * v2[j]
+
+
+# ---------------------------------------------------------------- the kernels
+@njit(cache=True)
+def _tet_block(lo, n, x, tets, dinv, ref_flags, tol, starts, needs, out, out_flags, next_dinv,
+               next_flags):
+    """The requested fields of tetrahedra lo … lo + n − 1, whose eigenproblems are solved
+    together; with ``next_flags`` not None also their rest-state data as deformed."""
+    polar = needs & NEED_POLAR
+    size = BLOCK if polar else 0
+    cb = np.empty((6, size))  # C/tr C of each tetrahedron of the block
+    fb = np.empty((9, size))  # F, column after column
+    vb = np.empty((9, size))
+    valid = np.zeros(size, np.bool_)
+    for i in range(n):
+        k = lo + i
+        g1, g2, g3, det_g, flag = edge_matrix(x, tets, k, tol)
+        if next_flags is not None:
+            _store_rest(k, g1, g2, g3, det_g, flag, next_dinv, next_flags)
+        flag |= ref_flags[k]
+        if polar:  # the identity for a skipped tetrahedron: converged at once
+            cb[0, i], cb[1, i], cb[2, i] = 1.0, 1.0, 1.0
+            cb[3, i], cb[4, i], cb[5, i] = 0.0, 0.0, 0.0
+        if flag & NAN_FLAGS:
+            if starts[S_FLAGS] >= 0:
+                out_flags[starts[S_FLAGS] + k] = flag
+            fill_nan(k, starts, _FLOAT_SIZES, out)
+            continue
+        f0 = _column(g1, g2, g3, dinv, k, 0)
+        f1 = _column(g1, g2, g3, dinv, k, 1)
+        f2 = _column(g1, g2, g3, dinv, k, 2)
+        det = dot(f0, cross(f1, f2))
+        if det < 0.0:
+            flag |= FLAG_INVERTED
+        if starts[S_FLAGS] >= 0:
+            out_flags[starts[S_FLAGS] + k] = flag
+        if starts[S_VOLUME_RATIO] >= 0:
+            _write_volume_ratio(out, starts[S_VOLUME_RATIO] + k, det)
+        if starts[S_F] >= 0:
+            _write_F(out, starts[S_F] + 9 * k, f0, f1, f2)
+        if not needs & NEED_C:
+            continue
+        c00, c11, c22 = dot(f0, f0), dot(f1, f1), dot(f2, f2)
+        c01, c02, c12 = dot(f0, f1), dot(f0, f2), dot(f1, f2)
+        if starts[S_C] >= 0:
+            _put_symmetric(out, starts[S_C] + 9 * k, c00, c11, c22, c01, c02, c12)
+        if starts[S_STRAIN] >= 0:
+            _write_strain(out, starts[S_STRAIN] + 9 * k, c00, c11, c22, c01, c02, c12)
+        if not polar:
+            continue
+        valid[i] = True
+        for r in range(3):
+            fb[r, i], fb[3 + r, i], fb[6 + r, i] = f0[r], f1[r], f2[r]
+        trace = c00 + c11 + c22
+        cb[0, i], cb[1, i], cb[2, i] = c00 / trace, c11 / trace, c22 / trace
+        cb[3, i], cb[4, i], cb[5, i] = c01 / trace, c02 / trace, c12 / trace
+    if not polar:
+        return
+    jacobi_block(cb, vb, n)
+    for i in range(n):
+        if not valid[i]:
+            continue
+        k = lo + i
+        l0, l1, l2, v0, v1, v2, w0, w1, w2 = polar_from_eigenvectors(
+            (fb[0, i], fb[1, i], fb[2, i]), (fb[3, i], fb[4, i], fb[5, i]),
+            (fb[6, i], fb[7, i], fb[8, i]), (vb[0, i], vb[1, i], vb[2, i]),
+            (vb[3, i], vb[4, i], vb[5, i]), (vb[6, i], vb[7, i], vb[8, i]))
+        if starts[S_STRETCH] >= 0:
+            _write_stretch(out, starts[S_STRETCH] + 3 * k, l0, l1, l2)
+        if starts[S_DIRECTIONS] >= 0:
+            _write_directions(out, starts[S_DIRECTIONS] + 9 * k, v0, v1, v2)
+        if starts[S_U] >= 0:
+            _write_U(out, starts[S_U] + 9 * k, l0, l1, l2, v0, v1, v2)
+        if starts[S_R] >= 0:
+            _write_R(out, starts[S_R] + 9 * k, v0, v1, v2, w0, w1, w2)
+
+
+@njit(cache=True, parallel=True, nogil=True)
+def tet_fields(x, tets, dinv, ref_flags, tol, starts, needs, out, out_flags):
+    """The per-tetrahedron fields of one pair from deformed positions ``x`` (N, 3) and the
+    rest-state data (D_r⁻¹, flags), into the buffers of a :class:`KernelPlan` (``starts``,
+    ``needs``). ``out`` may be float32 or float64; all arithmetic is float64. Tetrahedra are
+    taken in blocks of :data:`BLOCK`, whose eigenproblems are solved together."""
     m = tets.shape[0]
-    want_polar = U.shape[0] or R.shape[0] or stretch.shape[0] or directions.shape[0]
     for b in prange((m + BLOCK - 1) // BLOCK):
         lo = b * BLOCK
-        n = min(m, lo + BLOCK) - lo
-        size = BLOCK if want_polar else 0
-        cb = np.empty((6, size))  # C/tr C of each tetrahedron of the block
-        fb = np.empty((9, size))  # F, column after column
-        vb = np.empty((9, size))
-        valid = np.zeros(size, np.bool_)
-        for i in range(n):
-            k = lo + i
-            g1, g2, g3, det_g, flag = edge_matrix(x, tets, k, tol)
-            if next_flags.shape[0]:
-                _store_rest(k, g1, g2, g3, det_g, flag, next_dinv, next_flags)
-            flag |= ref_flags[k]
-            if want_polar:  # the identity for a skipped tetrahedron: converged at once
-                cb[0, i], cb[1, i], cb[2, i] = 1.0, 1.0, 1.0
-                cb[3, i], cb[4, i], cb[5, i] = 0.0, 0.0, 0.0
-            if flag & NAN_FLAGS:
-                if flags.shape[0]:
-                    flags[k] = flag
-                _fill_nan(k, F, C, U, R, strain, stretch, directions, volume_ratio)
-                continue
-            f0 = _column(g1, g2, g3, dinv, k, 0)
-            f1 = _column(g1, g2, g3, dinv, k, 1)
-            f2 = _column(g1, g2, g3, dinv, k, 2)
-            det = dot(f0, cross(f1, f2))
-            if det < 0.0:
-                flag |= FLAG_INVERTED
-            if flags.shape[0]:
-                flags[k] = flag
-            if volume_ratio.shape[0]:
-                volume_ratio[k] = det
-            cols = (f0, f1, f2)
-            if F.shape[0]:
-                for j in range(3):
-                    for r in range(3):
-                        F[k, r, j] = cols[j][r]
-            if not (C.shape[0] or strain.shape[0] or want_polar):
-                continue
-            c00, c11, c22 = dot(f0, f0), dot(f1, f1), dot(f2, f2)
-            c01, c02, c12 = dot(f0, f1), dot(f0, f2), dot(f1, f2)
-            if C.shape[0]:
-                C[k, 0, 0], C[k, 1, 1], C[k, 2, 2] = c00, c11, c22
-                C[k, 0, 1], C[k, 0, 2], C[k, 1, 2] = c01, c02, c12
-                C[k, 1, 0], C[k, 2, 0], C[k, 2, 1] = c01, c02, c12
-            if strain.shape[0]:
-                strain[k, 0, 0], strain[k, 1, 1] = 0.5 * (c00 - 1.0), 0.5 * (c11 - 1.0)
-                strain[k, 2, 2] = 0.5 * (c22 - 1.0)
-                strain[k, 0, 1], strain[k, 0, 2], strain[k, 1, 2] = 0.5 * c01, 0.5 * c02, 0.5 * c12
-                strain[k, 1, 0], strain[k, 2, 0], strain[k, 2, 1] = 0.5 * c01, 0.5 * c02, 0.5 * c12
-            if not want_polar:
-                continue
-            valid[i] = True
-            for j in range(3):
-                for r in range(3):
-                    fb[3 * j + r, i] = cols[j][r]
-            trace = c00 + c11 + c22
-            cb[0, i], cb[1, i], cb[2, i] = c00 / trace, c11 / trace, c22 / trace
-            cb[3, i], cb[4, i], cb[5, i] = c01 / trace, c02 / trace, c12 / trace
-        if not want_polar:
-            continue
-        jacobi_block(cb, vb, n)
-        for i in range(n):
-            if not valid[i]:
-                continue
-            k = lo + i
-            l0, l1, l2, v0, v1, v2, w0, w1, w2 = polar_from_eigenvectors(
-                (fb[0, i], fb[1, i], fb[2, i]), (fb[3, i], fb[4, i], fb[5, i]),
-                (fb[6, i], fb[7, i], fb[8, i]), (vb[0, i], vb[1, i], vb[2, i]),
-                (vb[3, i], vb[4, i], vb[5, i]), (vb[6, i], vb[7, i], vb[8, i]))
-            if stretch.shape[0]:
-                stretch[k, 0], stretch[k, 1], stretch[k, 2] = l0, l1, l2
-            if directions.shape[0]:
-                for j in range(3):
-                    directions[k, 0, j], directions[k, 1, j], directions[k, 2, j] = v0[j], v1[j], v2[j]
-            if U.shape[0]:
-                for r in range(3):
-                    for j in range(r, 3):
-                        urj = l0 * v0[r] * v0[j] + l1 * v1[r] * v1[j] + l2 * v2[r] * v2[j]
-                        U[k, r, j] = urj
-                        U[k, j, r] = urj
-            if R.shape[0]:
-                for r in range(3):
-                    for j in range(3):
-                        R[k, r, j] = w0[r] * v0[j] + w1[r] * v1[j] + w2[r] * v2[j]
+        _tet_block(lo, min(m, lo + BLOCK) - lo, x, tets, dinv, ref_flags, tol, starts, needs,
+                   out, out_flags, None, None)
 
 
-@njit(cache=True)
-def _fill_nan(k, F, C, U, R, strain, stretch, directions, volume_ratio):
-    nan = np.nan
-    if F.shape[0]:
-        F[k] = nan
-    if C.shape[0]:
-        C[k] = nan
-    if U.shape[0]:
-        U[k] = nan
-    if R.shape[0]:
-        R[k] = nan
-    if strain.shape[0]:
-        strain[k] = nan
-    if stretch.shape[0]:
-        stretch[k] = nan
-    if directions.shape[0]:
-        directions[k] = nan
-    if volume_ratio.shape[0]:
-        volume_ratio[k] = nan
-
-
-def allocate_fields(m, fields, dtype):
-    """Output arrays for :func:`tet_fields`: full size for the requested ``fields``, empty
-    (zero rows) for the others."""
-    out = {name: np.empty((m if name in fields else 0, *shape), dtype)
-           for name, shape in TET_SHAPES.items() if name != "flags"}
-    out["flags"] = np.empty(m if "flags" in fields else 0, np.uint8)
-    return out
+@njit(cache=True, parallel=True, nogil=True)
+def tet_fields_and_next_rest(x, tets, dinv, ref_flags, tol, starts, needs, out, out_flags,
+                             next_dinv, next_flags):
+    """:func:`tet_fields`, and from the same pass the rest-state data of ``x`` itself (as
+    :func:`rest_from_positions`, into ``next_*`` from :func:`allocate_rest`): the reference of
+    the next pair of a 'previous' sequence."""
+    m = tets.shape[0]
+    for b in prange((m + BLOCK - 1) // BLOCK):
+        lo = b * BLOCK
+        _tet_block(lo, min(m, lo + BLOCK) - lo, x, tets, dinv, ref_flags, tol, starts, needs,
+                   out, out_flags, next_dinv, next_flags)
 
 
 def analyze_tet_pair(reference, deformed, tets, *, fields=TET_FIELDS, dtype=np.float64,
@@ -341,7 +395,8 @@ def analyze_tet_pair(reference, deformed, tets, *, fields=TET_FIELDS, dtype=np.f
     """
     tets = np.ascontiguousarray(tets, dtype=np.int64)
     ref = rest_from_positions(np.ascontiguousarray(reference, dtype=np.float64), tets, tol)
-    out = allocate_fields(len(tets), fields, dtype)
-    tet_fields(np.ascontiguousarray(deformed, dtype=np.float64), tets, *ref, tol,
-               *(out[name] for name in TET_FIELDS), *allocate_rest(0))
-    return {name: out[name] for name in TET_FIELDS if name in fields}
+    plan = KernelPlan(len(tets), fields)
+    out, out_flags, views = plan.allocate(dtype)
+    tet_fields(np.ascontiguousarray(deformed, dtype=np.float64), tets, *ref, tol, plan.starts,
+               plan.needs, out, out_flags)
+    return views

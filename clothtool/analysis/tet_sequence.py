@@ -12,16 +12,15 @@ import time
 
 import numpy as np
 
-from clothtool.analysis.fields import FIELDS_TET
-from clothtool.analysis.output.summary import SummaryWriter
-from clothtool.analysis.tet import (DEGENERATE_TOL, TET_FIELDS, TET_SHAPES, allocate_fields,
-                                    allocate_rest, rest_from_positions, tet_fields)
+from clothtool.analysis.output.extras import PairExtras
+from clothtool.analysis.sequence import (AnalysisSummary, RestCache, accumulate,
+                                         create_field_datasets, kernel_threads_beside_writer,
+                                         pair_frames, write_common_header)
+from clothtool.analysis.tet import (DEGENERATE_TOL, KernelPlan, allocate_rest,
+                                    rest_from_positions, tet_fields, tet_fields_and_next_rest)
 from clothtool.errors import InputError
-from clothtool.io.h5 import AtomicH5, PairWriter, create_pair_dataset
+from clothtool.io.h5 import AtomicH5, PairWriter
 from clothtool.io.tetmesh import TetFrameReader, read_tet_mesh
-
-NEEDED = tuple(f.name for f in FIELDS_TET if f.summary)  # computed for /summary even if not stored
-
 
 def check_tet_options(reference, kabsch, vertex_average):
     """Options of the triangle analysis that do not apply to tetrahedra: one-line errors."""
@@ -37,30 +36,23 @@ def check_tet_options(reference, kabsch, vertex_average):
                          value=vertex_average)
 
 
-class _TetRest:
-    """D_r⁻¹ and flags of the current reference, computed once per reference frame."""
+class _TetRest(RestCache):
+    """D_r⁻¹ and flags of the current reference."""
 
     def __init__(self, reader, external):
+        super().__init__()
         self.reader, self.external = reader, external
-        self._key, self._data = None, None
 
     def vertices(self):
         return self.external if self.external is not None else self.reader.first.vertices
 
-    def put(self, index, data):
-        self._key, self._data = index, data
-
-    def get(self, index, positions):
-        if self._key != index:
-            self._data = rest_from_positions(positions, self.reader.tets, DEGENERATE_TOL)
-            self._key = index
-        return self._data
+    def compute(self, positions):
+        return rest_from_positions(positions, self.reader.tets, DEGENERATE_TOL)
 
 
 def run_tet_analysis(plan, *, progress=False, command=None, started=None):
     """Run the :class:`~clothtool.analysis.sequence.AnalysisPlan` of a tetrahedral sequence:
     read the frames, compute, write ``plan.output`` atomically. Returns its AnalysisSummary."""
-    from clothtool.analysis import sequence
     from clothtool.analysis.output.xdmf import xdmf_text
 
     started = time.perf_counter() if started is None else started
@@ -75,7 +67,7 @@ def run_tet_analysis(plan, *, progress=False, command=None, started=None):
     rest = _TetRest(reader, external)
     pairs = np.array(plan.pairs, dtype=np.int64).reshape(-1, 2)
     m, n = len(reader.tets), reader.n_vertices
-    summary = sequence.AnalysisSummary(plan.output, len(plan.frames), len(pairs), 0, n,
+    summary = AnalysisSummary(plan.output, len(plan.frames), len(pairs), 0, n,
                                        plan.fields, plan.reference, 0.0, tets=m,
                                        ignored_cells=reader.first.other_cells)
     compression = dict(plan.compression)
@@ -83,55 +75,42 @@ def run_tet_analysis(plan, *, progress=False, command=None, started=None):
 
     atomic = AtomicH5(plan.output)
     with atomic as h5:
-        sequence.write_common_header(h5, plan, pairs, command, DEGENERATE_TOL)
+        write_common_header(h5, plan, pairs, command, DEGENERATE_TOL)
         h5.attrs["ignored_cells"] = reader.first.other_cells
         mesh = h5.create_group("mesh")
         mesh.create_dataset("tets", data=reader.tets)
         mesh.create_dataset("vertices", data=rest.vertices())
-        positions = create_pair_dataset(h5, "frame_vertices", len(plan.frames), (n, 3),
-                                        plan.dtype, compression, fillvalue=np.nan)
-        table = SummaryWriter(h5, pairs, plan.pair_offset, tets=True)
-        group = h5.create_group("tet")
-        datasets = {name: create_pair_dataset(group, name, len(pairs), (m, *TET_SHAPES[name]),
-                                              np.uint8 if name == "flags" else plan.dtype,
-                                              compression)
-                    for name in plan.fields}
-        stored = np.zeros(len(plan.frames), bool)
-
-        def finish_pair(p, buffers, frames):  # on the writer thread, overlapping the next pair
-            for index, x in frames:
-                if index >= 0 and not stored[index]:
-                    positions[index] = x
-                    stored[index] = True
-            table.add(p, buffers["stretch"], buffers["volume_ratio"], buffers["flags"])
+        extras = PairExtras(h5, pairs, plan.pair_offset, len(plan.frames), None, n, {},
+                            plan.dtype, compression, tets=True)
+        datasets = create_field_datasets(h5, "tet", plan.fields, len(pairs), m, plan.dtype,
+                                         compression)
+        kernel_plan = KernelPlan(m, plan.computed)
 
         def make_buffers():
-            return allocate_fields(m, {*plan.fields, *NEEDED}, plan.dtype)
+            out, out_flags, views = kernel_plan.allocate(plan.dtype)
+            return {**views, "kernel/out": out, "kernel/out_flags": out_flags}
 
         with PairWriter(datasets, make_buffers) as writer, \
-                sequence.kernel_threads_beside_writer():
-            for p, r, d, x_ref, ref, x in sequence.pair_frames(pairs, reader, rest, progress):
+                kernel_threads_beside_writer():
+            for p, r, d, x_ref, ref, x in pair_frames(pairs, reader, rest, progress):
                 buffers = writer.buffers()
-                # in a 'previous' sequence this frame is the next reference: its D_r⁻¹ comes
-                # from the same pass (fresh arrays: the writer thread may still read these)
-                next_rest = allocate_rest(m if previous else 0)
-                tet_fields(x, reader.tets, *ref, DEGENERATE_TOL,
-                           *(buffers[name] for name in TET_FIELDS), *next_rest)
+                kernel = (x, reader.tets, *ref, DEGENERATE_TOL, kernel_plan.starts,
+                          kernel_plan.needs, buffers["kernel/out"], buffers["kernel/out_flags"])
                 if previous:
+                    # this frame is the next reference: its D_r⁻¹ from the same pass (fresh
+                    # arrays: the writer thread may still read these)
+                    next_rest = allocate_rest(m)
+                    tet_fields_and_next_rest(*kernel, *next_rest)
                     rest.put(d, next_rest)
-                _accumulate(summary, buffers)
-                writer.write(p, buffers, functools.partial(finish_pair, p, buffers,
+                else:
+                    tet_fields(*kernel)
+                accumulate(summary, buffers["stretch"], buffers["flags"])
+                # on the writer thread, overlapping the next pair
+                writer.write(p, buffers, functools.partial(extras.pair, p, buffers, ref[0],
                                                            ((r, x_ref), (d, x))))
-        table.close()
+        extras.close()
         atomic.add_sidecar(plan.xdmf, xdmf_text(h5, os.path.basename(plan.output)))
     summary.seconds = time.perf_counter() - started
     return summary
 
-
-def _accumulate(summary, buffers):
-    s = buffers["stretch"]
-    if s.size and np.isfinite(s).any():
-        summary.stretch_max = float(np.fmax(summary.stretch_max, np.nanmax(s[:, 0])))
-        summary.stretch_min = float(np.fmin(summary.stretch_min, np.nanmin(s[:, 2])))
-    summary.flagged += int(np.count_nonzero(buffers["flags"]))
 
