@@ -2,8 +2,6 @@
 and ascii) mutated anywhere, truncated, or replaced by random bytes. Every outcome is a
 consistent TetMesh or an InputError naming the file, never another exception or a hang."""
 
-import contextlib
-import signal
 import time
 
 import numpy as np
@@ -11,29 +9,12 @@ import pytest
 from conftest import TET_VARIANTS, tet_grid, write_tet_file
 from hypothesis import given
 from hypothesis import strategies as st
-from test_fuzz import FUZZ, HANG_SECONDS, edited
+from test_fuzz import FUZZ, edited, no_hang
 
 from clothtool.errors import InputError
 from clothtool.io.tetmesh import TetMesh, read_tet_mesh
 
 X, TETS = tet_grid(2, np.random.default_rng(3))
-
-
-class Hang(BaseException):
-    """Raised by the alarm: a BaseException, so that no reader's error handling can hide it."""
-
-
-@contextlib.contextmanager
-def no_hang(seconds=HANG_SECONDS):
-    def expire(signum, frame):
-        raise Hang(f"reading took more than {seconds} s")
-    old = signal.signal(signal.SIGALRM, expire)
-    signal.setitimer(signal.ITIMER_REAL, seconds)
-    try:
-        yield
-    finally:
-        signal.setitimer(signal.ITIMER_REAL, 0)
-        signal.signal(signal.SIGALRM, old)
 
 
 @pytest.fixture(scope="module")
