@@ -220,7 +220,8 @@ class Solver:
     ``integrator``: ``bdf2`` (second order, the default) or ``euler`` (backward Euler),
     each the minimisation of its incremental potential by Newton's method: at most
     ``newton_iterations`` Newton steps per solver step, stopping when the largest
-    velocity correction max|Δx|/h is below ``newton_tolerance`` (m/s); each Newton
+    velocity correction max|Δx|/h and the Newton decrement as a velocity
+    √(Δxᵀ H Δx / free mass) are below ``newton_tolerance`` (m/s); each Newton
     step is a PCG solve whose relative residual ``tolerance`` is the finest it asks
     for (later Newton steps ask for less: Eisenstat–Walker); ``preconditioner`` is
     block Jacobi or an aggregation multigrid V-cycle. ``newton_iterations: 1`` is
