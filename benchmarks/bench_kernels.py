@@ -9,13 +9,11 @@ for float32 and float64 storage of clothtool's results.
 """
 
 import pathlib
-import statistics
-import time
 
 import numba
 import numpy as np
 
-from benchmarks.common import markdown_table, write_csv
+from benchmarks.common import markdown_table, median_seconds, write_csv
 from clothtool.analysis.deformation2d import (KernelPlan, deformation_fields,
                                               reference_from_positions)
 
@@ -94,16 +92,6 @@ def clothtool_kernel(x_ref, x_def, faces, dtype):
     out, out_flags, views = plan.allocate(dtype)
     deformation_fields(x_def, faces, *ref, 1e-8, plan.starts, plan.needs, out, out_flags)
     return views["stretch"], views["R"], views["U"]
-
-
-def median_seconds(fn, repeat=7):
-    fn()
-    times = []
-    for _ in range(repeat):
-        t = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t)
-    return statistics.median(times)
 
 
 def rel_error(value, ref):

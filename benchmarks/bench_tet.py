@@ -21,13 +21,12 @@ I/O floor.
 import os
 import pathlib
 import statistics
-import time
 
 import numba
 import numpy as np
 
-from benchmarks.common import (PYTHON, clothtool_cmd, markdown_table, peak_rss_mb, run_timed,
-                               write_csv)
+from benchmarks.common import (PYTHON, clothtool_cmd, markdown_table, median_seconds, peak_rss_mb,
+                               run_timed, write_csv)
 from clothtool.analysis.tet import (DEGENERATE_TOL, TET_FIELDS, KernelPlan, rest_from_positions,
                                     tet_fields)
 
@@ -151,16 +150,6 @@ def timed(cmd, fresh):
     return run_timed(cmd)
 
 
-def median_seconds(fn, repeat=REPEAT):
-    fn()
-    times = []
-    for _ in range(repeat):
-        started = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - started)
-    return statistics.median(times)
-
-
 def kernel_rows(x, tets):
     y = inverted_frame(x, tets)
     rest = rest_from_positions(x, tets)
@@ -173,9 +162,9 @@ def kernel_rows(x, tets):
     dinv = np.linalg.inv(np.transpose(x[tets[:, :3]] - x[tets[:, 3:]], (0, 2, 1)))
     threads = numba.get_num_threads()
     rows = []
-    t_all = median_seconds(kernel)
+    t_all = median_seconds(kernel, REPEAT)
     numba.set_num_threads(1)
-    t_one = median_seconds(kernel)
+    t_one = median_seconds(kernel, REPEAT)
     numba.set_num_threads(threads)
     t_np = median_seconds(lambda: numpy_route(x, y, tets, dinv), repeat=3)
     m = len(tets)

@@ -100,54 +100,9 @@ def broken_frame(tmp, data, name="frame_1.ply"):
 
 
 @case
-def empty_file(tmp):
-    return broken_frame(tmp, b"")
-
-
-@case
-def text_file_named_ply(tmp):
-    return broken_frame(tmp, b"hello, I am not a mesh\n")
-
-
-@case
-def garbage_bytes(tmp):
-    return broken_frame(tmp, np.random.default_rng(1).integers(0, 256, 4096, np.uint8).tobytes())
-
-
-@case
-def missing_end_header(tmp):
-    return broken_frame(tmp, header().replace(b"end_header\n", b"") + QUAD.tobytes())
-
-
-@case
-def end_header_without_line_break(tmp):
-    return broken_frame(tmp, header(n_faces=None, n_vertices=0).rstrip(b"\n"))
-
-
-@case
-def unknown_format(tmp):
-    return broken_frame(tmp, binary([[0, 1, 2]]).replace(b"binary_little_endian", b"binary_middle_endian"))
-
-
-@case
-def unknown_property_type(tmp):
-    return broken_frame(tmp, binary([[0, 1, 2]]).replace(b"property float y", b"property float3 y"))
-
-
-@case
-def unknown_header_keyword(tmp):
-    return broken_frame(tmp, binary([[0, 1, 2]], extra=["elemnt edge 3"]))
-
-
-@case
 def non_ascii_header(tmp):
     data = binary([[0, 1, 2]]).replace(b"ply\n", "ply\ncomment caf\u00e9 \u00e0 Z\u00fcrich\n".encode(), 1)
     return broken_frame(tmp, data)
-
-
-@case
-def huge_vertex_count_binary(tmp):
-    return broken_frame(tmp, binary([[0, 1, 2]]).replace(b"element vertex 4", b"element vertex 1000000000000"))
 
 
 @case
@@ -157,107 +112,53 @@ def huge_vertex_count_ascii(tmp):
 
 
 @case
-def huge_face_count_binary(tmp):
-    return broken_frame(tmp, binary([[0, 1, 2]], n_faces=10**12))
-
-
-@case
-def truncated_in_vertices(tmp):
-    return broken_frame(tmp, binary([[0, 1, 2]])[:-30])
-
-
-@case
-def truncated_in_faces(tmp):
-    return broken_frame(tmp, binary([[0, 1, 2], [0, 2, 3], [0, 1, 3]])[:-5])
-
-
-@case
-def truncated_ascii(tmp):
-    return broken_frame(tmp, ascii_ply(GOOD_ASCII_VERTICES, ["3 0 1 2"], n_faces=3))
-
-
-@case
-def trailing_bytes(tmp):
-    return broken_frame(tmp, binary([[0, 1, 2]]) + b"\0" * 7)
-
-
-@case
 def ascii_too_few_numbers(tmp):
     c = broken_frame(tmp, ascii_ply(["0 0 0", "1 0", "1 1 0", "0 1 0"], ["3 0 1 2"]))
     c.culprit = "line 11: vertex 1 has 2 numbers"  # the header has 9 lines
     return c
 
 
-@case
-def ascii_not_a_number(tmp):
-    return broken_frame(tmp, ascii_ply(["0 0 0", "1 0 zero", "1 1 0", "0 1 0"], ["3 0 1 2"]))
-
-
-@case
-def ascii_list_longer_than_line(tmp):
-    return broken_frame(tmp, ascii_ply(GOOD_ASCII_VERTICES, ["3 0 1 2", "4 0 1 2"]))
-
-
-@case
-def ascii_negative_list_count(tmp):
-    return broken_frame(tmp, ascii_ply(GOOD_ASCII_VERTICES, ["3 0 1 2", "-1 0 1 2"]))
-
-
-@case
-def face_with_two_corners_binary(tmp):
-    return broken_frame(tmp, binary([[0, 1, 2], [0, 1]]))
-
-
-@case
-def face_with_two_corners_ascii(tmp):
-    return broken_frame(tmp, ascii_ply(GOOD_ASCII_VERTICES, ["2 0 1", "2 1 2"]))
-
-
-@case
-def index_out_of_range(tmp):
-    return broken_frame(tmp, binary([[0, 1, 2], [0, 2, 4]]))
-
-
-@case
-def negative_index(tmp):
-    return broken_frame(tmp, binary([[0, 1, 2], [0, -1, 3]]))
-
-
-@case
-def non_integer_index(tmp):
-    return broken_frame(tmp, ascii_ply(GOOD_ASCII_VERTICES, ["3 0 1 2.5"]))
-
-
-@case
-def negative_list_count_binary(tmp):
-    return broken_frame(tmp, binary([[0, 1, 2], [0, 2, 3]], count="<i4")[:-16]
-                        + np.array([-3, 0, 2, 3], "<i4").tobytes())
-
-
-@case
-def huge_list_count_binary(tmp):
-    return broken_frame(tmp, binary([[0, 1, 2]], count="<u4")[:-16]
-                        + np.array([4_000_000_000, 0, 1, 2], "<u4").tobytes())
-
-
-@case
-def no_vertex_element(tmp):
-    return broken_frame(tmp, b"ply\nformat ascii 1.0\nelement point 1\nproperty float x\nend_header\n0\n")
-
-
-@case
-def vertex_without_z(tmp):
-    return broken_frame(tmp, ascii_ply(["0 0", "1 0", "1 1"], ["3 0 1 2"], vertex_props="xy"))
-
-
-@case
-def duplicate_property(tmp):
-    return broken_frame(tmp, binary([[0, 1, 2]]).replace(b"property float z", b"property float x"))
-
-
-@case
-def face_without_vertex_indices(tmp):
-    return broken_frame(tmp, binary([[0, 1, 2]]).replace(b"vertex_indices", b"corner_ids"))
+# broken second frames of a PLY sequence: name → a function making the file's bytes
+BROKEN_FRAMES = {
+    "empty_file": lambda: b"",
+    "text_file_named_ply": lambda: b"hello, I am not a mesh\n",
+    "garbage_bytes": lambda: np.random.default_rng(1).integers(0, 256, 4096, np.uint8).tobytes(),
+    "missing_end_header": lambda: header().replace(b"end_header\n", b"") + QUAD.tobytes(),
+    "end_header_without_line_break": lambda: header(n_faces=None, n_vertices=0).rstrip(b"\n"),
+    "unknown_format":
+        lambda: binary([[0, 1, 2]]).replace(b"binary_little_endian", b"binary_middle_endian"),
+    "unknown_property_type":
+        lambda: binary([[0, 1, 2]]).replace(b"property float y", b"property float3 y"),
+    "unknown_header_keyword": lambda: binary([[0, 1, 2]], extra=["elemnt edge 3"]),
+    "huge_vertex_count_binary":
+        lambda: binary([[0, 1, 2]]).replace(b"element vertex 4", b"element vertex 1000000000000"),
+    "huge_face_count_binary": lambda: binary([[0, 1, 2]], n_faces=10**12),
+    "truncated_in_vertices": lambda: binary([[0, 1, 2]])[:-30],
+    "truncated_in_faces": lambda: binary([[0, 1, 2], [0, 2, 3], [0, 1, 3]])[:-5],
+    "truncated_ascii": lambda: ascii_ply(GOOD_ASCII_VERTICES, ["3 0 1 2"], n_faces=3),
+    "trailing_bytes": lambda: binary([[0, 1, 2]]) + b"\0" * 7,
+    "ascii_not_a_number": lambda: ascii_ply(["0 0 0", "1 0 zero", "1 1 0", "0 1 0"], ["3 0 1 2"]),
+    "ascii_list_longer_than_line": lambda: ascii_ply(GOOD_ASCII_VERTICES, ["3 0 1 2", "4 0 1 2"]),
+    "ascii_negative_list_count": lambda: ascii_ply(GOOD_ASCII_VERTICES, ["3 0 1 2", "-1 0 1 2"]),
+    "face_with_two_corners_binary": lambda: binary([[0, 1, 2], [0, 1]]),
+    "face_with_two_corners_ascii": lambda: ascii_ply(GOOD_ASCII_VERTICES, ["2 0 1", "2 1 2"]),
+    "index_out_of_range": lambda: binary([[0, 1, 2], [0, 2, 4]]),
+    "negative_index": lambda: binary([[0, 1, 2], [0, -1, 3]]),
+    "non_integer_index": lambda: ascii_ply(GOOD_ASCII_VERTICES, ["3 0 1 2.5"]),
+    "negative_list_count_binary":
+        lambda: binary([[0, 1, 2], [0, 2, 3]], count="<i4")[:-16] + np.array([-3, 0, 2, 3], "<i4").tobytes(),
+    "huge_list_count_binary":
+        lambda: binary([[0, 1, 2]], count="<u4")[:-16] + np.array([4_000_000_000, 0, 1, 2], "<u4").tobytes(),
+    "no_vertex_element":
+        lambda: b"ply\nformat ascii 1.0\nelement point 1\nproperty float x\nend_header\n0\n",
+    "vertex_without_z": lambda: ascii_ply(["0 0", "1 0", "1 1"], ["3 0 1 2"], vertex_props="xy"),
+    "duplicate_property":
+        lambda: binary([[0, 1, 2]]).replace(b"property float z", b"property float x"),
+    "face_without_vertex_indices":
+        lambda: binary([[0, 1, 2]]).replace(b"vertex_indices", b"corner_ids"),
+}
+for _name, _make in BROKEN_FRAMES.items():
+    CASES[_name] = lambda tmp, make=_make: broken_frame(tmp, make())
 
 
 @case

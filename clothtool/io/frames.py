@@ -110,9 +110,7 @@ class FrameReader:
         if len(getattr(self.first, self.cells)) == 0:
             raise InputError(f"{self.paths[0]}: mesh has no {self.cell_word}")
 
-    @staticmethod
-    def read(path, reuse=None):
-        return read_mesh(path, reuse=reuse)
+    read = staticmethod(read_mesh)  # (path, reuse=None) → mesh
 
     @property
     def faces(self):

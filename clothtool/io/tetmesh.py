@@ -227,9 +227,7 @@ class TetFrameReader(FrameReader):
 
     cells, cell_word = "tets", "tetrahedra"
 
-    @staticmethod
-    def read(path, reuse=None):
-        return read_tet_mesh(path, reuse=reuse)
+    read = staticmethod(read_tet_mesh)
 
     @property
     def tets(self):
