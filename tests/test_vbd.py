@@ -9,6 +9,7 @@ from click.testing import CliRunner
 from clothtool.cli import main
 from clothtool.sim.blocksparse import BlockMatrix
 from clothtool.sim.config import load_config
+from clothtool.sim.membrane import membrane_element, membrane_vertex
 from clothtool.sim.energy import FemElastic
 from clothtool.sim.methods import make_integrator
 from clothtool.sim.model import build_model
@@ -50,13 +51,41 @@ def test_vertex_systems_are_the_blocks_of_the_assembled_potential(material):
     big_g = mass * (x - y).ravel() / h**2 + grad.ravel() + damping @ (x - x_n).ravel()
     big_h = np.diag(mass / h**2) + k_x.to_scipy().toarray() + damping
     g, hm = np.empty(3), np.empty((3, 3))
-    work = (np.empty(9), np.empty((9, 9)), np.empty((6, 6)), np.empty(12))
+    work = (np.empty(12),)
     for i in range(model.n_vertices):
         vertex_system(i, *vbd._args(x, x_n, y), g, hm, *work)
         np.testing.assert_allclose(g, big_g[3 * i:3 * i + 3], rtol=0, atol=1e-12 * np.abs(big_g).max())
         np.testing.assert_allclose(hm, big_h[3 * i:3 * i + 3, 3 * i:3 * i + 3], rtol=0,
                                    atol=1e-12 * np.abs(big_h).max())
         assert np.linalg.eigvalsh(hm).min() > 0.0
+
+
+def test_membrane_vertex_is_the_diagonal_block_of_the_element_kernel():
+    """membrane_vertex's gradient and 3×3 block equal corner a's rows of membrane_element's
+    (FD-checked) gradient and projected Hessian, over stretched and compressed triangles,
+    positive and negative shear, with and without each stiffness."""
+    rng = np.random.default_rng(3)
+    g9, h9, work = np.empty(9), np.empty((9, 9)), np.empty((6, 6))
+    signs = set()
+    for trial in range(300):
+        x = rng.normal(size=(3, 3))
+        dr_inv = rng.normal(size=(2, 2))
+        stretch = np.array([rng.uniform(0, 5), rng.uniform(0, 5), rng.uniform(0.5, 1.5),
+                            rng.uniform(0.5, 1.5)])
+        stretch[trial % 3] = 0.0 if trial % 3 < 2 else stretch[2]
+        k_shear = rng.uniform(0, 3) if trial % 4 else 0.0
+        membrane_element(x[0], x[1], x[2], dr_inv, 0.7, stretch, k_shear, True, g9, h9, work)
+        f = x[1:].T - x[0][:, None] @ np.ones((1, 2))
+        signs.add(np.sign(np.dot(*(f @ dr_inv).T)))
+        scale = np.abs(h9).max() + np.abs(g9).max()
+        for a in range(3):
+            g, h = np.zeros(3), np.zeros((3, 3))
+            membrane_vertex(tuple(x[0]), tuple(x[1]), tuple(x[2]), dr_inv, 0.7, stretch, k_shear,
+                            a, g, h)
+            np.testing.assert_allclose(g, g9[3 * a:3 * a + 3], rtol=0, atol=1e-13 * scale)
+            np.testing.assert_allclose(h, h9[3 * a:3 * a + 3, 3 * a:3 * a + 3], rtol=0,
+                                       atol=1e-13 * scale)
+    assert signs >= {-1.0, 1.0}
 
 
 def test_colouring_is_valid_and_deterministic():
