@@ -23,7 +23,8 @@ gradients and Hessians are those of the implicit method's kernels, evaluated per
 :func:`~clothtool.sim.bending.quadratic_element`), PSD-projected, restricted to
 the vertex's 3×3 block, so H_ii is positive definite. Vertices are visited in
 graph-colour order (vertices of one colour share no triangle and no hinge, so the
-vertices of a colour are updated in parallel, each reading only other colours);
+result does not depend on the order within a colour and a colour could be updated in
+parallel; the kernel is serial: numba threads per colour cost more than they saved here);
 ``solver.iterations`` sweeps over all colours per step, starting from the paper's
 adaptive guess (§3.4) x = x_n + h v_n + h² ã, ã = g · clamp(a_n·ĝ/‖g‖, 0, 1) per
 vertex, a_n = (v_n − v_{n−1})/h the last step's acceleration (g before the first step):
@@ -38,7 +39,7 @@ contact forces in the sweeps, no friction).
 """
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
 from clothtool.geometry import dihedral_angle_gradient
 from clothtool.sim.bending import quadratic_element
@@ -242,40 +243,35 @@ def _solve3(hm, g, out):
     return True
 
 
-@njit(cache=True, parallel=True)
-def vbd_sweeps(sweeps, rho, tolerance, scale, vertices, colour_ptr, chunks, prev1, prev2, g2,
-               work_g, work_h, work_d, work_12, x, x_n, y, mass, inv_h2, faces, dr_inv, area,
-               stretch, k_shear, membrane, tri_ptr, tri_elem, tri_corner, bend, hinge,
-               rest_angle, coef, weights, hinge_ptr, hinge_elem, hinge_corner, damp, tri_damp,
-               tri_f, hinge_damp):
+@njit(cache=True)
+def vbd_sweeps(sweeps, rho, tolerance, scale, vertices, colour_ptr, prev1, prev2, g2, x, x_n, y,
+               mass, inv_h2, faces, dr_inv, area, stretch, k_shear, membrane, tri_ptr, tri_elem,
+               tri_corner, bend, hinge, rest_angle, coef, weights, hinge_ptr, hinge_elem,
+               hinge_corner, damp, tri_damp, tri_f, hinge_damp):
     """Up to ``sweeps`` sweeps on x in place: colour by colour, one Newton step on each vertex
-    of the colour (no two share an element, so they run in ``chunks`` parallel chunks), then,
-    with ρ = ``rho`` > 0, the Chebyshev mix (module docstring; prev1, prev2: x⁽ᵏ⁻¹⁾, x⁽ᵏ⁻²⁾).
+    of the colour (no two share an element, so the order within a colour does not matter),
+    then, with ρ = ``rho`` > 0, the Chebyshev mix (module docstring; prev1, prev2: x⁽ᵏ⁻¹⁾,
+    x⁽ᵏ⁻²⁾).
 
     Returns (sweeps done, r): r = ‖g‖/``scale``, g the vertices' gradients as each vertex
     met them in the last sweep (the Gauss–Seidel residual), ``scale`` ‖M g_gravity‖ (or,
     when 0, r of the first sweep). With ``tolerance`` > 0 the sweeps stop once r ≤ tolerance.
-    g2 (len(vertices),) and work_*: workspace."""
-    n_colours = colour_ptr.shape[0] - 1
+    g2 (len(vertices),) is workspace."""
+    g, hm, dx, g12 = np.empty(3), np.empty((3, 3)), np.empty(3), np.empty(12)
     omega = 1.0
     r = 0.0
     done = 0
     for k in range(sweeps):
-        for c in range(n_colours):
-            start, stop = colour_ptr[c], colour_ptr[c + 1]
-            count = stop - start
-            for ch in prange(chunks):
-                g, hm, dx, g12 = work_g[ch], work_h[ch], work_d[ch], work_12[ch]
-                for j in range(start + ch * count // chunks, start + (ch + 1) * count // chunks):
-                    i = vertices[j]
-                    vertex_system(i, x, x_n, y, mass, inv_h2, faces, dr_inv, area, stretch,
-                                  k_shear, membrane, tri_ptr, tri_elem, tri_corner, bend, hinge,
-                                  rest_angle, coef, weights, hinge_ptr, hinge_elem, hinge_corner,
-                                  damp, tri_damp, tri_f, hinge_damp, g, hm, g12)
-                    g2[j] = g[0] * g[0] + g[1] * g[1] + g[2] * g[2]
-                    if _solve3(hm, g, dx):
-                        for p in range(3):
-                            x[i, p] += dx[p]
+        for j in range(vertices.shape[0]):  # colour by colour (vertices sorted by colour)
+            i = vertices[j]
+            vertex_system(i, x, x_n, y, mass, inv_h2, faces, dr_inv, area, stretch, k_shear,
+                          membrane, tri_ptr, tri_elem, tri_corner, bend, hinge, rest_angle, coef,
+                          weights, hinge_ptr, hinge_elem, hinge_corner, damp, tri_damp, tri_f,
+                          hinge_damp, g, hm, g12)
+            g2[j] = g[0] * g[0] + g[1] * g[1] + g[2] * g[2]
+            if _solve3(hm, g, dx):
+                for p in range(3):
+                    x[i, p] += dx[p]
         if rho > 0.0:
             omega = 1.0 if k == 0 else (2.0 / (2.0 - rho * rho) if k == 1
                                         else 4.0 / (4.0 - rho * rho * omega))
@@ -296,6 +292,22 @@ def vbd_sweeps(sweeps, rho, tolerance, scale, vertices, colour_ptr, chunks, prev
         if tolerance > 0.0 and r <= tolerance:
             break
     return done, r
+
+
+@njit(cache=True)
+def gradient_norm(vertices, x, x_n, y, mass, inv_h2, faces, dr_inv, area, stretch, k_shear,
+                  membrane, tri_ptr, tri_elem, tri_corner, bend, hinge, rest_angle, coef, weights,
+                  hinge_ptr, hinge_elem, hinge_corner, damp, tri_damp, tri_f, hinge_damp):
+    """‖∇E(x)‖ over the free vertices (their g_i at x, nothing moved)."""
+    g, hm, g12 = np.empty(3), np.empty((3, 3)), np.empty(12)
+    total = 0.0
+    for j in range(vertices.shape[0]):
+        vertex_system(vertices[j], x, x_n, y, mass, inv_h2, faces, dr_inv, area, stretch, k_shear,
+                      membrane, tri_ptr, tri_elem, tri_corner, bend, hinge, rest_angle, coef,
+                      weights, hinge_ptr, hinge_elem, hinge_corner, damp, tri_damp, tri_f,
+                      hinge_damp, g, hm, g12)
+        total += g[0] * g[0] + g[1] * g[1] + g[2] * g[2]
+    return np.sqrt(total)
 
 
 # ---------------------------------------------------------------------------- integrator
@@ -322,12 +334,9 @@ class VertexBlockDescent(Integrator):
         self.tri_f = np.zeros((len(self.tri_damp), 6))
         dihedral = damped and self.bend == BEND_DIHEDRAL
         self.hinge_damp = np.zeros((len(model.hinge) if dihedral else 0, 12))
-        self.chunks = max(1, int(np.ceil(np.diff(self.colour_ptr).max(initial=0) / 64)))
         free = self.vertices
         self.scale = float(np.sqrt(np.sum((model.mass[free] ** 2)) * float(model.gravity @ model.gravity)))
         self._g2 = np.zeros(len(free))
-        self._work = (np.zeros((self.chunks, 3)), np.zeros((self.chunks, 3, 3)),
-                      np.zeros((self.chunks, 3)), np.zeros((self.chunks, 12)))
 
     def _args(self, x, x_n, y):
         """The arguments of :func:`vertex_system` after the vertex index."""
@@ -351,7 +360,11 @@ class VertexBlockDescent(Integrator):
         else:
             prev1 = prev2 = x
         return vbd_sweeps(sweeps, rho, tolerance, self.scale, self.vertices, self.colour_ptr,
-                          self.chunks, prev1, prev2, self._g2, *self._work, *self._args(x, x_n, y))
+                          prev1, prev2, self._g2, *self._args(x, x_n, y))
+
+    def residual(self, x, x_n, y):
+        """‖∇E(x)‖/‖M g‖ over the free vertices, after :meth:`prepare` (x_n)."""
+        return gradient_norm(self.vertices, *self._args(x, x_n, y)) / (self.scale or 1.0)
 
     def sweep(self, x, x_n, y):
         """One Newton step per free vertex, colour by colour, on x in place."""
