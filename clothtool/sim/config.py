@@ -250,7 +250,7 @@ class Solver:
     pbd_stiffness: float = _field(1.0, _number(minimum=0, exclusive=True, maximum=1))  # pbd
     strain_limit: float = _field(0.0, _number(minimum=0, maximum=1))  # pbd: ε, 0 = off
     cfl: float = _field(0.5, _number(minimum=0, maximum=1))  # explicit: 0 = no automatic steps
-    chebyshev_rho: float = _field(0.0, _below_one)  # vbd: Chebyshev ρ in [0, 1), 0 = off
+    chebyshev_rho: float = _field(0.9, _below_one)  # vbd: Chebyshev ρ in [0, 1), 0 = off
     vbd_tolerance: float = _field(0.0, _number(minimum=0))  # vbd: stop at ‖∇E‖/‖Mg‖ ≤ this, 0 = off
 
 
