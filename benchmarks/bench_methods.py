@@ -81,7 +81,8 @@ GRID = [
     ("pbd strain-limit 5%", "pbd", {"strain_limit": 0.05}, (4, 16), (5, 20)),
     ("explicit", "explicit", {"cfl": 0.0}, (200, 400, 800, 1600), None),
     ("explicit auto", "explicit", {}, (1,), None),
-    ("vbd", "vbd", {}, (1, 4, 16), (5, 20)),
+    ("vbd", "vbd", {}, (1, 4, 16, 32), (5, 10, 20)),
+    ("vbd no chebyshev", "vbd", {"chebyshev_rho": 0.0}, (1, 16), (10,)),
 ]
 DRAPE_GRID = [
     ("implicit", "implicit", {}, (1, 4), None),

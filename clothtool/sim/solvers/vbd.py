@@ -30,12 +30,14 @@ adaptive guess (§3.4) x = x_n + h v_n + h² ã, ã = g · clamp(a_n·ĝ/‖g‖
 vertex, a_n = (v_n − v_{n−1})/h the last step's acceleration (g before the first step):
 y in free fall, so free fall is exact, and x_n + h v_n at rest, so a resting sheet
 is a fixed point of the sweeps only where ∇E = 0 (starting from y instead, a few sweeps
-stop short of the minimum and the sheet settles below its equilibrium). With ``solver.chebyshev_rho`` = ρ > 0 each sweep is Chebyshev-
-accelerated (paper §3.6, after Wang 2015): x⁽ᵏ⁾ = ω_k(x̄⁽ᵏ⁾ − x⁽ᵏ⁻²⁾) + x⁽ᵏ⁻²⁾ with
+stop short of the minimum and the sheet settles below its equilibrium). With
+``solver.chebyshev_rho`` = ρ > 0 each sweep is Chebyshev-accelerated (paper §3.6, after Wang 2015): x⁽ᵏ⁾ = ω_k(x̄⁽ᵏ⁾ − x⁽ᵏ⁻²⁾) + x⁽ᵏ⁻²⁾ with
 ω_1 = 1, ω_2 = 2/(2 − ρ²), ω_k = 4/(4 − ρ²ω_{k−1}), when a step has at least 5 sweeps: with
 2 or 3 the step ends on the large first extrapolations (ω_2 = 1.68 at ρ = 0.9) and the
-32×32 hanging sheet blew up at 4 to 64 substeps; from 5 sweeps on it never did, and ρ = 0.9
-(the default) lowered the error at every step count measured (docs/solvers.md).
+24×24 benchmark sheet hanging from two corners blew up at 4 to 64 substeps; from 5 sweeps on
+it never did, and ρ = 0.9 (the default) lowered the error at every step count measured
+(docs/solvers.md). With ``solver.vbd_tolerance`` > 0 a step stops sweeping once
+‖g‖/‖M g_gravity‖ ≤ tolerance, g the vertex gradients met during the sweep.
 
 Pinned vertices stay at x_n; colliders project vertices out after the step (no
 contact forces in the sweeps, no friction).
