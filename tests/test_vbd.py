@@ -174,6 +174,22 @@ def test_converged_vbd_follows_backward_euler_to_the_implicit_equilibrium():
     assert np.linalg.norm(a.x - b.x, axis=1).max() < 1e-3
 
 
+def test_tolerance_stops_the_sweeps_at_a_small_true_gradient():
+    """With a tolerance the sweeps stop once the sweep's residual is below it, and the true
+    relative gradient ‖∇E(x)‖/‖M g‖ there (``residual``) is of the same size; without one,
+    ``iterations`` sweeps run."""
+    model, vbd, _ = setup(nx=6, ny=6)
+    state = model.initial_state()
+    state.v[:] = np.random.default_rng(2).normal(scale=0.2, size=state.v.shape)
+    y, x = vbd._inertial_target(state), vbd._initial_guess(state)
+    vbd.prepare(state.x)
+    start = vbd.residual(x, state.x, y)
+    done, r = vbd.solve(x, state.x, y, 100000, 0.9, 1e-8)
+    assert start > 1e-2 and 1 < done < 100000 and r <= 1e-8
+    assert vbd.residual(x, state.x, y) < 1e-7
+    assert vbd.solve(vbd._initial_guess(state), state.x, y, 7)[0] == 7
+
+
 @pytest.mark.parametrize("rho", [0.0, 0.8])
 def test_same_config_gives_byte_identical_frames(tmp_path, rho):
     cfg = {"mesh": {"grid": {"nx": 12, "ny": 12, "plane": "xz"}},

@@ -35,8 +35,8 @@ stop short of the minimum and the sheet settles below its equilibrium). With
 ω_1 = 1, ω_2 = 2/(2 − ρ²), ω_k = 4/(4 − ρ²ω_{k−1}), when a step has at least 5 sweeps: with
 2 or 3 the step ends on the large first extrapolations (ω_2 = 1.68 at ρ = 0.9) and the
 24×24 benchmark sheet hanging from two corners blew up at 4 to 64 substeps; from 5 sweeps on
-it never did, and ρ = 0.9 (the default) lowered the error at every step count measured
-(docs/solvers.md). With ``solver.vbd_tolerance`` > 0 a step stops sweeping once
+it never did, and ρ = 0.9 (the default) lowered the error at all but one of the settings
+measured (docs/solvers.md). With ``solver.vbd_tolerance`` > 0 a step stops sweeping once
 ‖g‖/‖M g_gravity‖ ≤ tolerance, g the vertex gradients met during the sweep.
 
 Pinned vertices stay at x_n; colliders project vertices out after the step (no
