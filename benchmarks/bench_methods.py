@@ -112,7 +112,8 @@ GRID = [
     ("xpbd", "xpbd", {}, (1, 4, 16, 64), (5, 20)),
     ("pbd", "pbd", {}, (1, 4, 16, 64), (5, 20)),
     ("explicit", "explicit", {}, (1,), None),  # automatic internal steps (cfl 0.5)
-    ("vbd", "vbd", {}, (1, 4, 16), (5, 20)),
+    ("vbd", "vbd", {}, (1, 4, 16, 32), (5, 10, 20)),
+    ("vbd no chebyshev", "vbd", {"chebyshev_rho": 0.0}, (1, 16), (10,)),
 ]
 COLUMNS = ["scene", "method", "substeps", "iterations", "ms_per_frame", "error_m",
            "newton_per_step", "max_stretch", "status"]

@@ -69,7 +69,8 @@ solver:
   pbd_stiffness: 1.0    # pbd: per-constraint stiffness in (0, 1]
   strain_limit: 0.0     # pbd: keep edges within [1 − ε, 1 + ε] of rest length; 0 = off
   cfl: 0.5              # explicit: internal steps of at most cfl × the critical step; 0 = off
-  chebyshev_rho: 0.0    # vbd: Chebyshev acceleration with spectral radius estimate ρ in [0, 1); 0 = off
+  chebyshev_rho: 0.9    # vbd: Chebyshev acceleration with spectral radius estimate ρ in [0, 1), from 5 sweeps per step; 0 = off
+  vbd_tolerance: 0.0    # vbd: stop a step's sweeps once ‖∇E‖/‖M g‖ ≤ this; 0 = always `iterations` sweeps
 
 time:
   fps: 30               # frames per second of simulated time

@@ -236,7 +236,8 @@ class Solver:
     [1 − ε, 1 + ε] of their rest length; 0 = off); ``explicit`` splits each step
     into internal steps of at most ``cfl`` × its estimated critical step (0 = off);
     ``vbd`` runs ``iterations`` vertex sweeps per step, Chebyshev-accelerated with
-    spectral radius estimate ``chebyshev_rho`` (0 = off).
+    spectral radius estimate ``chebyshev_rho`` (0 = off), stopping early once the
+    gradient of the step's potential is below ``vbd_tolerance`` × ‖M g‖ (0 = off).
     """
 
     method: str = _field("implicit", _choice(METHODS))
@@ -256,7 +257,8 @@ class Solver:
     pbd_stiffness: float = _field(1.0, _number(minimum=0, exclusive=True, maximum=1))  # pbd
     strain_limit: float = _field(0.0, _number(minimum=0, maximum=1))  # pbd: ε, 0 = off
     cfl: float = _field(0.5, _number(minimum=0, maximum=1))  # explicit: 0 = no automatic steps
-    chebyshev_rho: float = _field(0.0, _below_one)  # vbd: Chebyshev ρ in [0, 1), 0 = off
+    chebyshev_rho: float = _field(0.9, _below_one)  # vbd: Chebyshev ρ in [0, 1), 0 = off
+    vbd_tolerance: float = _field(0.0, _number(minimum=0))  # vbd: stop at ‖∇E‖/‖Mg‖ ≤ this, 0 = off
 
 
 @dataclass(frozen=True)

@@ -48,6 +48,13 @@ def _deformation(x0, x1, x2, dr_inv):
 
 
 @njit(cache=True)
+def deformation_gradient(x0, x1, x2, dr_inv):
+    """F's columns (f0, f1) = D_d D_r⁻¹."""
+    f0, f1, _, _ = _deformation(x0, x1, x2, dr_inv)
+    return f0, f1
+
+
+@njit(cache=True)
 def _density(f0, f1, stretch, k_shear):
     n0 = np.sqrt(dot(f0, f0))
     n1 = np.sqrt(dot(f1, f1))
@@ -88,10 +95,45 @@ def _stretch_block(f, k, b, project, out, offset):
 
 
 @njit(cache=True)
+def _shear_eigen(f0, f1):
+    """The projected shear Hessian's pieces (module docstring): s = f0·f1, ŝ's and d̂'s
+    halves us = u/√(2U), ws = w/√(2W) (zero when undefined), and the non-negative
+    eigenvalue λ of the 2×2 block with its eigenvector's halves (top, bottom)
+    (λ = 0 and zero halves when it is not positive)."""
+    s = dot(f0, f1)
+    u = add(f0, f1)
+    w = sub(f1, f0)
+    big_u = dot(u, u)
+    big_w = dot(w, w)
+    # ŝ = (u, u)/√(2U), d̂ = (w, −w)/√(2W); zero when undefined (their weight is then 0)
+    us = scale(1.0 / np.sqrt(2.0 * big_u), u) if big_u > EPS * EPS else (0.0, 0.0, 0.0)
+    ws = scale(1.0 / np.sqrt(2.0 * big_w), w) if big_w > EPS * EPS else (0.0, 0.0, 0.0)
+    # the non-negative eigenvalue of the 2×2 block on span(ŝ, d̂)
+    a11 = 0.75 * big_u - 0.25 * big_w
+    a22 = 0.75 * big_w - 0.25 * big_u
+    a12 = 0.5 * np.sqrt(big_u * big_w)
+    half = 0.5 * (a11 - a22)
+    lam = 0.5 * (a11 + a22) + np.sqrt(half * half + a12 * a12)
+    if lam <= 0.0:
+        return s, us, ws, 0.0, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0)
+    c1, c2 = a12, lam - a11
+    d1, d2 = lam - a22, a12
+    if c1 * c1 + c2 * c2 < d1 * d1 + d2 * d2:
+        c1, c2 = d1, d2
+    norm = np.sqrt(c1 * c1 + c2 * c2)
+    if norm == 0.0:  # a12 = 0 and lam = a11 = a22: any unit vector of the block
+        c1, c2, norm = 1.0, 0.0, 1.0
+    c1 /= norm
+    c2 /= norm
+    # eigenvector c1 ŝ + c2 d̂ = (c1 us + c2 ws, c1 us − c2 ws)
+    return s, us, ws, lam, add(scale(c1, us), scale(c2, ws)), sub(scale(c1, us), scale(c2, ws))
+
+
+@njit(cache=True)
 def _shear_hessian(f0, f1, k, project, out):
     """Add the 6×6 shear Hessian k[ggᵀ + s H₆] (or its PSD projection) to out."""
-    s = dot(f0, f1)
     if not project:
+        s = dot(f0, f1)
         for p in range(3):
             for q in range(3):
                 out[p, q] += k * f1[p] * f1[q]
@@ -101,13 +143,7 @@ def _shear_hessian(f0, f1, k, project, out):
             out[p, 3 + p] += k * s
             out[3 + p, p] += k * s
         return
-    u = add(f0, f1)
-    w = sub(f1, f0)
-    big_u = dot(u, u)
-    big_w = dot(w, w)
-    # ŝ = (u, u)/√(2U), d̂ = (w, −w)/√(2W); zero when undefined (their weight is then 0)
-    us = scale(1.0 / np.sqrt(2.0 * big_u), u) if big_u > EPS * EPS else (0.0, 0.0, 0.0)
-    ws = scale(1.0 / np.sqrt(2.0 * big_w), w) if big_w > EPS * EPS else (0.0, 0.0, 0.0)
+    s, us, ws, lam, top, bottom = _shear_eigen(f0, f1)
     # s (P⁺ − ŝŝᵀ) when s > 0, −s (P⁻ − d̂d̂ᵀ) when s < 0; P± = ½[[I, ±I], [±I, I]]
     if s > 0.0:
         for p in range(6):
@@ -120,26 +156,8 @@ def _shear_hessian(f0, f1, k, project, out):
                 sign = 1.0 if (p < 3) == (q < 3) else -1.0
                 same = 0.5 if p % 3 == q % 3 else 0.0
                 out[p, q] -= k * s * sign * (same - ws[p % 3] * ws[q % 3])
-    # the non-negative eigenvalue of the 2×2 block on span(ŝ, d̂)
-    a11 = 0.75 * big_u - 0.25 * big_w
-    a22 = 0.75 * big_w - 0.25 * big_u
-    a12 = 0.5 * np.sqrt(big_u * big_w)
-    half = 0.5 * (a11 - a22)
-    lam = 0.5 * (a11 + a22) + np.sqrt(half * half + a12 * a12)
     if lam <= 0.0:
         return
-    c1, c2 = a12, lam - a11
-    d1, d2 = lam - a22, a12
-    if c1 * c1 + c2 * c2 < d1 * d1 + d2 * d2:
-        c1, c2 = d1, d2
-    norm = np.sqrt(c1 * c1 + c2 * c2)
-    if norm == 0.0:  # a12 = 0 and lam = a11 = a22: any unit vector of the block
-        c1, c2, norm = 1.0, 0.0, 1.0
-    c1 /= norm
-    c2 /= norm
-    # eigenvector c1 ŝ + c2 d̂ = (c1 us + c2 ws, c1 us − c2 ws)
-    top = add(scale(c1, us), scale(c2, ws))
-    bottom = sub(scale(c1, us), scale(c2, ws))
     for p in range(6):
         vp = top[p] if p < 3 else bottom[p - 3]
         for q in range(6):
@@ -180,6 +198,59 @@ def membrane_element(x0, x1, x2, dr_inv, area, stretch, k_shear, project, grad, 
                     hess[3 * v + p, 3 * w + q] = (aa * h_f[p, q] + ab * h_f[p, 3 + q]
                                                   + ba * h_f[3 + p, q] + bb * h_f[3 + p, 3 + q])
     return energy
+
+
+@njit(cache=True)
+def membrane_vertex(x0, x1, x2, dr_inv, area, stretch, k_shear, a, grad, hess):
+    """Adds corner a's gradient (3,) and the (a, a) 3×3 block of the projected Hessian of
+    one triangle to grad and hess, without the 9×9 (Vertex Block Descent's per-vertex
+    system). With f0 = Σ α_v x_v, f1 = Σ β_v x_v the block is
+    A[α² H₀₀ + αβ(H₀₁ + H₁₀) + β² H₁₁] of the projected ∂²Ψ/∂vec F², which by the
+    eigensystems above is
+
+        A[α² k_u(ĉ₀) + β² k_v(ĉ₁) + (α + β)² k_h s(½I − us usᵀ)   (s > 0)
+                                  − (α − β)² k_h s(½I − ws wsᵀ)   (s < 0)
+                                  + k_h λ t tᵀ],   t = α top + β bottom,
+
+    k(ĉ) = k[f̂f̂ᵀ + c(I − f̂f̂ᵀ)] the stretch blocks; equal to the (a, a) block of
+    :func:`membrane_element` with ``project``."""
+    f0, f1, alpha, beta = _deformation(x0, x1, x2, dr_inv)
+    al, be = alpha[a], beta[a]
+    g0, g1 = _stress(f0, f1, stretch, k_shear)
+    for p in range(3):
+        grad[p] += area * (al * g0[p] + be * g1[p])
+    if stretch[0] > 0.0:
+        _stretch_vertex(f0, stretch[0], stretch[2], area * al * al, hess)
+    if stretch[1] > 0.0:
+        _stretch_vertex(f1, stretch[1], stretch[3], area * be * be, hess)
+    if k_shear <= 0.0:
+        return
+    s, us, ws, lam, top, bottom = _shear_eigen(f0, f1)
+    if s > 0.0:
+        c, e = area * k_shear * s * (al + be) ** 2, us
+    elif s < 0.0:
+        c, e = -area * k_shear * s * (al - be) ** 2, ws
+    else:
+        c, e = 0.0, us
+    t = add(scale(al, top), scale(be, bottom))
+    lt = area * k_shear * lam
+    for p in range(3):
+        for q in range(3):
+            hess[p, q] += lt * t[p] * t[q] - c * e[p] * e[q]
+        hess[p, p] += 0.5 * c
+
+
+@njit(cache=True)
+def _stretch_vertex(f, k, b, weight, hess):
+    """Add weight · k[f̂f̂ᵀ + c(I − f̂f̂ᵀ)], c = max(1 − b/‖f‖, 0) (the projected stretch block)."""
+    n2 = max(dot(f, f), EPS * EPS)
+    c = max(1.0 - b / np.sqrt(n2), 0.0)
+    along = weight * k * (1.0 - c) / n2
+    across = weight * k * c
+    for p in range(3):
+        for q in range(3):
+            hess[p, q] += along * f[p] * f[q]
+        hess[p, p] += across
 
 
 @njit(cache=True)

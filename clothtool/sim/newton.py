@@ -16,7 +16,7 @@ and sets v_{n+1} = (x − b)/ĥ, where W is the method's elastic energy
   step, without x_{n−1}, is backward Euler; (x_{n−1}, v_{n−1}) live in the State.
 
 D = (β/ĥ) K is stiffness-proportional (Rayleigh) damping with β = material.damping
-seconds and K the PSD-projected elastic Hessian at the start of the step, so that the
+seconds and K the PSD-projected elastic Hessian at x_n (Baraff & Witkin 1998), so that the
 damping force is −βK v_{n+1} with the integrator's own velocity; collider friction
 uses ĥ the same way (:mod:`clothtool.sim.collide`).
 
@@ -189,12 +189,13 @@ class NewtonIntegrator(Integrator):
         report = StepReport()
         forcing, g_prev, step = solver.tolerance, 0.0, 1.0
         damped = self._damping is not None
+        if damped:  # D = (β/ĥ) K(x_n), frozen for the step
+            self.elastic.assemble(x_n, self._grad, values)
+            np.multiply(values, model.damping / h_eff, out=self._damping.values)
+            self._damping.multiply(x - base, self._damped)  # D(x − base), kept up to date
         for it in range(solver.newton_iterations):
             elastic = self.elastic.assemble(x, self._grad, values)
             if damped:
-                if it == 0:  # D = (β/ĥ) K at the start of the step, frozen for the step
-                    np.multiply(values, model.damping / h_eff, out=self._damping.values)
-                    self._damping.multiply(x - base, self._damped)  # D(x − base), kept up to date
                 values += self._damping.values
             matrix.add_diagonal(inertia)
             # ∇E = M(x − x̃)/ĥ² − M g + ∇W + D(x − base)

@@ -15,38 +15,46 @@ vertices: vertex i takes one Newton step on E as a function of x_i alone,
                              H_ii = m_i/h² I + Σ_e K_e,ii(x) + (β/h) Σ_e K_e,ii(x_n)
 
 (paper eq. 5–9), e running over the triangles and hinges around i. The element
-gradients and Hessians are those of the implicit method's kernels
-(:func:`~clothtool.sim.membrane.membrane_element`; the dihedral angle gradient of
+gradients and Hessians are those of the implicit method's kernels, evaluated per vertex
+(:func:`~clothtool.sim.membrane.membrane_vertex`, the (i, i) block of
+:func:`~clothtool.sim.membrane.membrane_element` without the 9×9; the dihedral angle gradient of
 :mod:`clothtool.geometry` with the Gauss–Newton Hessian of
 :func:`~clothtool.sim.bending.dihedral_assemble`;
 :func:`~clothtool.sim.bending.quadratic_element`), PSD-projected, restricted to
 the vertex's 3×3 block, so H_ii is positive definite. Vertices are visited in
 graph-colour order (vertices of one colour share no triangle and no hinge, so the
-vertices of a colour are updated in parallel, each reading only other colours);
+result does not depend on the order within a colour and a colour could be updated in
+parallel; the kernel is serial: numba threads per colour cost more than they saved here);
 ``solver.iterations`` sweeps over all colours per step, starting from the paper's
 adaptive guess (§3.4) x = x_n + h v_n + h² ã, ã = g · clamp(a_n·ĝ/‖g‖, 0, 1) per
 vertex, a_n = (v_n − v_{n−1})/h the last step's acceleration (g before the first step):
 y in free fall, so free fall is exact, and x_n + h v_n at rest, so a resting sheet
 is a fixed point of the sweeps only where ∇E = 0 (starting from y instead, a few sweeps
-stop short of the minimum and the sheet settles below its equilibrium). With ``solver.chebyshev_rho`` = ρ > 0 each sweep is Chebyshev-
-accelerated (paper §3.6, after Wang 2015): x⁽ᵏ⁾ = ω_k(x̄⁽ᵏ⁾ − x⁽ᵏ⁻²⁾) + x⁽ᵏ⁻²⁾ with
-ω_1 = 1, ω_2 = 2/(2 − ρ²), ω_k = 4/(4 − ρ²ω_{k−1}).
+stop short of the minimum and the sheet settles below its equilibrium). With
+``solver.chebyshev_rho`` = ρ > 0 each sweep is Chebyshev-accelerated (paper §3.6, after Wang 2015): x⁽ᵏ⁾ = ω_k(x̄⁽ᵏ⁾ − x⁽ᵏ⁻²⁾) + x⁽ᵏ⁻²⁾ with
+ω_1 = 1, ω_2 = 2/(2 − ρ²), ω_k = 4/(4 − ρ²ω_{k−1}), when a step has at least 5 sweeps: with
+2 or 3 the step ends on the large first extrapolations (ω_2 = 1.68 at ρ = 0.9) and the
+24×24 benchmark sheet hanging from two corners blew up at 4 to 64 substeps; from 5 sweeps on
+it never did, and ρ = 0.9 (the default) lowered the error at all but one of the settings
+measured (docs/solvers.md). With ``solver.vbd_tolerance`` > 0 a step stops sweeping once
+‖g‖/‖M g_gravity‖ ≤ tolerance, g the vertex gradients met during the sweep.
 
 Pinned vertices stay at x_n; colliders project vertices out after the step (no
 contact forces in the sweeps, no friction).
 """
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
 from clothtool.geometry import dihedral_angle_gradient
 from clothtool.sim.bending import quadratic_element
 from clothtool.sim.energy import FemElastic
 from clothtool.sim.integrator import Integrator, StepReport
-from clothtool.sim.membrane import membrane_element
+from clothtool.sim.membrane import deformation_gradient, membrane_element, membrane_vertex
 from clothtool.vec3 import load
 
 BEND_NONE, BEND_DIHEDRAL, BEND_QUADRATIC = 0, 1, 2
+CHEBYSHEV_MIN_SWEEPS = 5  # below this Chebyshev is off (docstring)
 SINGULAR = 1e-300  # a 3×3 block whose determinant is below this is left alone (never with mass)
 
 
@@ -114,35 +122,64 @@ def colour_groups(n, elements, free):
 # ---------------------------------------------------------------------------- kernels
 
 
-@njit(cache=True, parallel=True)
-def damping_data(x, faces, dr_inv, area, stretch, k_shear, bend, hinge, tri_out, hinge_out):
-    """What the damping matrix D = (β/h) K(x_n) needs, at x = x_n: the projected membrane
-    Hessian of every triangle (M, 9, 9) and ∇θ of every dihedral hinge (H, 12), whose
-    Gauss–Newton Hessian is 2c ∇θ∇θᵀ (zero for a degenerate hinge); parallel over elements."""
-    for t in prange(tri_out.shape[0]):
-        g = np.empty(9)
-        work = np.empty((6, 6))
-        membrane_element(load(x, faces[t, 0]), load(x, faces[t, 1]), load(x, faces[t, 2]),
-                         dr_inv[t], area[t], stretch, k_shear, True, g, tri_out[t], work)
+@njit(cache=True)
+def damping_data(x, faces, dr_inv, area, stretch, k_shear, bend, hinge, tri_hf, tri_f, hinge_out):
+    """What the damping matrix D = (β/h) K(x_n) needs, at x = x_n: per triangle the projected
+    ∂²Ψ/∂vec F² (M, 6, 6) and F = (f0, f1) (M, 6) (its K is A Bᵀ H_F B, B = ∂vec F/∂x), and
+    ∇θ of every dihedral hinge (H, 12), whose Gauss–Newton Hessian is 2c ∇θ∇θᵀ (zero for
+    a degenerate hinge)."""
+    g, hess = np.empty(9), np.empty((9, 9))
+    for t in range(tri_hf.shape[0]):
+        x0, x1, x2 = load(x, faces[t, 0]), load(x, faces[t, 1]), load(x, faces[t, 2])
+        membrane_element(x0, x1, x2, dr_inv[t], area[t], stretch, k_shear, True, g, hess,
+                         tri_hf[t])
+        f0, f1 = deformation_gradient(x0, x1, x2, dr_inv[t])
+        for p in range(3):
+            tri_f[t, p] = f0[p]
+            tri_f[t, 3 + p] = f1[p]
     if bend == BEND_DIHEDRAL:
-        for h in prange(hinge_out.shape[0]):
+        for h in range(hinge_out.shape[0]):
             dihedral_angle_gradient(load(x, hinge[h, 0]), load(x, hinge[h, 1]),
                                     load(x, hinge[h, 2]), load(x, hinge[h, 3]), hinge_out[h])
 
 
 @njit(cache=True)
+def membrane_damping(x0, x1, x2, dr_inv, area, a, h_f, f_n, damp, g, hmat):
+    """Adds corner a's rows of (β/h) K(x_n)(x − x_n) and its (a, a) block to g and hmat, for one
+    triangle: with K = A Bᵀ H_F B, K(x − x_n) = A Bᵀ H_F δF, δF = F(x) − F(x_n) (F is
+    linear in x), so row a is A[α(H₀₀δf0 + H₀₁δf1) + β(H₁₀δf0 + H₁₁δf1)] and the block
+    A[α²H₀₀ + αβ(H₀₁ + H₁₀) + β²H₁₁] (α, β the corner's weights in f0, f1)."""
+    f0, f1 = deformation_gradient(x0, x1, x2, dr_inv)
+    al = -dr_inv[0, 0] - dr_inv[1, 0] if a == 0 else dr_inv[a - 1, 0]
+    be = -dr_inv[0, 1] - dr_inv[1, 1] if a == 0 else dr_inv[a - 1, 1]
+    d = (f0[0] - f_n[0], f0[1] - f_n[1], f0[2] - f_n[2],
+         f1[0] - f_n[3], f1[1] - f_n[4], f1[2] - f_n[5])
+    wa, wb = damp * area * al, damp * area * be
+    for p in range(3):
+        acc = 0.0
+        for q in range(6):
+            acc += (wa * h_f[p, q] + wb * h_f[3 + p, q]) * d[q]
+        g[p] += acc
+        for q in range(3):
+            hmat[p, q] += (al * (wa * h_f[p, q] + wb * h_f[p, 3 + q])
+                           + be * (wa * h_f[3 + p, q] + wb * h_f[3 + p, 3 + q]))
+
+
+@njit(cache=True)
 def vertex_system(i, x, x_n, y, mass, inv_h2, faces, dr_inv, area, stretch, k_shear, membrane,
                   tri_ptr, tri_elem, tri_corner, bend, hinge, rest_angle, coef, weights,
-                  hinge_ptr, hinge_elem, hinge_corner, damp, tri_damp, hinge_damp,
-                  g, hmat, g9, h9, work, g12):
+                  hinge_ptr, hinge_elem, hinge_corner, damp, tri_damp, tri_f, hinge_damp, g, hmat,
+                  g12):
     """g_i (3,) and H_ii (3, 3) of the incremental potential at vertex i (module docstring),
     written into g and hmat. ``damp`` = β/h; tri_damp, hinge_damp: :func:`damping_data` at
-    x_n. g9, h9, work, g12 are workspace.
+    x_n (tri_damp the triangles' H_F, tri_f their F); g12 is workspace.
 
-    Bending: the dihedral gradient 2c(θ − θ̄)∇θ and the vertex block 2c ∇_iθ∇_iθᵀ of its
-    Gauss–Newton Hessian (:func:`~clothtool.sim.bending.dihedral_assemble`), from
-    geometry's ∇θ; quadratic: the gradient of :func:`~clothtool.sim.bending.quadratic_element`
-    and the block 2c w_i² I of its constant Hessian."""
+    Membrane: :func:`~clothtool.sim.membrane.membrane_vertex` (the vertex's gradient and
+    3×3 block, no 9×9). Bending: the dihedral gradient 2c(θ − θ̄)∇θ and the vertex block
+    2c ∇_iθ∇_iθᵀ of its Gauss–Newton Hessian (:func:`~clothtool.sim.bending.dihedral_assemble`),
+    from geometry's ∇θ; quadratic: the gradient of
+    :func:`~clothtool.sim.bending.quadratic_element` and the block 2c w_i² I of its constant
+    Hessian."""
     m = mass[i] * inv_h2
     for p in range(3):
         g[p] = m * (x[i, p] - y[i, p])
@@ -151,21 +188,11 @@ def vertex_system(i, x, x_n, y, mass, inv_h2, faces, dr_inv, area, stretch, k_sh
     if membrane:
         for k in range(tri_ptr[i], tri_ptr[i + 1]):
             t, a = tri_elem[k], tri_corner[k]
-            membrane_element(load(x, faces[t, 0]), load(x, faces[t, 1]), load(x, faces[t, 2]),
-                             dr_inv[t], area[t], stretch, k_shear, True, g9, h9, work)
-            for p in range(3):
-                g[p] += g9[3 * a + p]
-                for q in range(3):
-                    hmat[p, q] += h9[3 * a + p, 3 * a + q]
+            membrane_vertex(load(x, faces[t, 0]), load(x, faces[t, 1]), load(x, faces[t, 2]),
+                            dr_inv[t], area[t], stretch, k_shear, a, g, hmat)
             if damp > 0.0:
-                kd = tri_damp[t]
-                for p in range(3):
-                    for b in range(3):
-                        vb = faces[t, b]
-                        for q in range(3):
-                            g[p] += damp * kd[3 * a + p, 3 * b + q] * (x[vb, q] - x_n[vb, q])
-                    for q in range(3):
-                        hmat[p, q] += damp * kd[3 * a + p, 3 * a + q]
+                membrane_damping(load(x, faces[t, 0]), load(x, faces[t, 1]), load(x, faces[t, 2]),
+                                 dr_inv[t], area[t], a, tri_damp[t], tri_f[t], damp, g, hmat)
     if bend == BEND_NONE:
         return
     for k in range(hinge_ptr[i], hinge_ptr[i + 1]):
@@ -222,39 +249,71 @@ def _solve3(hm, g, out):
     return True
 
 
-@njit(cache=True, parallel=True)
-def vbd_colour(vertices, start, stop, chunks, x, x_n, y, mass, inv_h2, faces, dr_inv, area,
-               stretch, k_shear, membrane, tri_ptr, tri_elem, tri_corner, bend, hinge, rest_angle,
-               coef, weights, hinge_ptr, hinge_elem, hinge_corner, damp, tri_damp, hinge_damp):
-    """One Newton step on each vertex of ``vertices[start:stop]`` (one colour: no two share an
-    element, so the order within the colour does not matter), in ``chunks`` parallel chunks."""
-    count = stop - start
-    for c in prange(chunks):
-        g = np.empty(3)
-        hm = np.empty((3, 3))
-        dx = np.empty(3)
-        g9 = np.empty(9)
-        h9 = np.empty((9, 9))
-        work = np.empty((6, 6))
-        g12 = np.empty(12)
-        for k in range(start + c * count // chunks, start + (c + 1) * count // chunks):
-            i = vertices[k]
+@njit(cache=True)
+def vbd_sweeps(sweeps, rho, tolerance, scale, vertices, colour_ptr, prev1, prev2, g2, x, x_n, y,
+               mass, inv_h2, faces, dr_inv, area, stretch, k_shear, membrane, tri_ptr, tri_elem,
+               tri_corner, bend, hinge, rest_angle, coef, weights, hinge_ptr, hinge_elem,
+               hinge_corner, damp, tri_damp, tri_f, hinge_damp):
+    """Up to ``sweeps`` sweeps on x in place: colour by colour, one Newton step on each vertex
+    of the colour (no two share an element, so the order within a colour does not matter),
+    then, with ρ = ``rho`` > 0, the Chebyshev mix (module docstring; prev1, prev2: x⁽ᵏ⁻¹⁾,
+    x⁽ᵏ⁻²⁾).
+
+    Returns (sweeps done, r): r = ‖g‖/``scale``, g the vertices' gradients as each vertex
+    met them in the last sweep (the Gauss–Seidel residual), ``scale`` ‖M g_gravity‖ (or,
+    when 0, r of the first sweep). With ``tolerance`` > 0 the sweeps stop once r ≤ tolerance.
+    g2 (len(vertices),) is workspace."""
+    g, hm, dx, g12 = np.empty(3), np.empty((3, 3)), np.empty(3), np.empty(12)
+    omega = 1.0
+    r = 0.0
+    done = 0
+    for k in range(sweeps):
+        for j in range(vertices.shape[0]):  # colour by colour (vertices sorted by colour)
+            i = vertices[j]
             vertex_system(i, x, x_n, y, mass, inv_h2, faces, dr_inv, area, stretch, k_shear,
                           membrane, tri_ptr, tri_elem, tri_corner, bend, hinge, rest_angle, coef,
-                          weights, hinge_ptr, hinge_elem, hinge_corner, damp, tri_damp, hinge_damp,
-                          g, hm, g9, h9, work, g12)
+                          weights, hinge_ptr, hinge_elem, hinge_corner, damp, tri_damp, tri_f,
+                          hinge_damp, g, hm, g12)
+            g2[j] = g[0] * g[0] + g[1] * g[1] + g[2] * g[2]
             if _solve3(hm, g, dx):
                 for p in range(3):
                     x[i, p] += dx[p]
+        if rho > 0.0:
+            omega = 1.0 if k == 0 else (2.0 / (2.0 - rho * rho) if k == 1
+                                        else 4.0 / (4.0 - rho * rho * omega))
+            for j in range(vertices.shape[0]):
+                i = vertices[j]
+                for p in range(3):
+                    if k > 0:
+                        x[i, p] = omega * (x[i, p] - prev2[i, p]) + prev2[i, p]
+                    prev2[i, p] = prev1[i, p]
+                    prev1[i, p] = x[i, p]
+        total = 0.0
+        for j in range(vertices.shape[0]):
+            total += g2[j]
+        if scale <= 0.0:
+            scale = np.sqrt(total) if total > 0.0 else 1.0
+        r = np.sqrt(total) / scale
+        done = k + 1
+        if tolerance > 0.0 and r <= tolerance:
+            break
+    return done, r
 
 
 @njit(cache=True)
-def chebyshev_mix(x, prev2, vertices, omega):
-    """x ← ω (x − x⁽ᵏ⁻²⁾) + x⁽ᵏ⁻²⁾ on the swept vertices."""
-    for k in range(vertices.shape[0]):
-        i = vertices[k]
-        for p in range(3):
-            x[i, p] = omega * (x[i, p] - prev2[i, p]) + prev2[i, p]
+def gradient_norm(vertices, x, x_n, y, mass, inv_h2, faces, dr_inv, area, stretch, k_shear,
+                  membrane, tri_ptr, tri_elem, tri_corner, bend, hinge, rest_angle, coef, weights,
+                  hinge_ptr, hinge_elem, hinge_corner, damp, tri_damp, tri_f, hinge_damp):
+    """‖∇E(x)‖ over the free vertices (their g_i at x, nothing moved)."""
+    g, hm, g12 = np.empty(3), np.empty((3, 3)), np.empty(12)
+    total = 0.0
+    for j in range(vertices.shape[0]):
+        vertex_system(vertices[j], x, x_n, y, mass, inv_h2, faces, dr_inv, area, stretch, k_shear,
+                      membrane, tri_ptr, tri_elem, tri_corner, bend, hinge, rest_angle, coef,
+                      weights, hinge_ptr, hinge_elem, hinge_corner, damp, tri_damp, tri_f,
+                      hinge_damp, g, hm, g12)
+        total += g[0] * g[0] + g[1] * g[1] + g[2] * g[2]
+    return np.sqrt(total)
 
 
 # ---------------------------------------------------------------------------- integrator
@@ -277,17 +336,20 @@ class VertexBlockDescent(Integrator):
                         else np.zeros((0, 4)))
         damped = model.damping > 0.0
         self.damp = model.damping / h if damped else 0.0
-        self.tri_damp = np.zeros((len(model.faces) if damped else 0, 9, 9))
+        self.tri_damp = np.zeros((len(model.faces) if damped else 0, 6, 6))
+        self.tri_f = np.zeros((len(self.tri_damp), 6))
         dihedral = damped and self.bend == BEND_DIHEDRAL
         self.hinge_damp = np.zeros((len(model.hinge) if dihedral else 0, 12))
-        self.chunks = max(1, int(np.ceil(np.diff(self.colour_ptr).max(initial=0) / 64)))
+        free = self.vertices
+        self.scale = float(np.sqrt(np.sum((model.mass[free] ** 2)) * float(model.gravity @ model.gravity)))
+        self._g2 = np.zeros(len(free))
 
     def _args(self, x, x_n, y):
         """The arguments of :func:`vertex_system` after the vertex index."""
         m = self.model
         return (x, x_n, y, m.mass, 1.0 / (self.h * self.h), m.faces, m.dr_inv, m.area, m.stretch,
                 m.k_shear, m.has_membrane, *self.tri, self.bend, m.hinge, m.hinge_rest_angle,
-                m.hinge_coef, self.weights, *self.hinges, self.damp, self.tri_damp,
+                m.hinge_coef, self.weights, *self.hinges, self.damp, self.tri_damp, self.tri_f,
                 self.hinge_damp)
 
     def prepare(self, x_n):
@@ -295,38 +357,39 @@ class VertexBlockDescent(Integrator):
         m = self.model
         if self.damp > 0.0:
             damping_data(x_n, m.faces, m.dr_inv, m.area, m.stretch, m.k_shear, self.bend,
-                         m.hinge, self.tri_damp, self.hinge_damp)
+                         m.hinge, self.tri_damp, self.tri_f, self.hinge_damp)
+
+    def solve(self, x, x_n, y, sweeps, rho=0.0, tolerance=0.0):
+        """:func:`vbd_sweeps` on x in place (Chebyshev only from ``CHEBYSHEV_MIN_SWEEPS``
+        sweeps on); returns (sweeps done, relative residual)."""
+        if sweeps < CHEBYSHEV_MIN_SWEEPS:
+            rho = 0.0
+        if rho > 0.0:
+            prev1, prev2 = x.copy(), x.copy()
+        else:
+            prev1 = prev2 = x
+        return vbd_sweeps(sweeps, rho, tolerance, self.scale, self.vertices, self.colour_ptr,
+                          prev1, prev2, self._g2, *self._args(x, x_n, y))
+
+    def residual(self, x, x_n, y):
+        """‖∇E(x)‖/‖M g‖ over the free vertices, after :meth:`prepare` (x_n)."""
+        return gradient_norm(self.vertices, *self._args(x, x_n, y)) / (self.scale or 1.0)
 
     def sweep(self, x, x_n, y):
         """One Newton step per free vertex, colour by colour, on x in place."""
-        args = self._args(x, x_n, y)
-        ptr = self.colour_ptr
-        for c in range(len(ptr) - 1):
-            vbd_colour(self.vertices, ptr[c], ptr[c + 1], self.chunks, *args)
+        self.solve(x, x_n, y, 1)
 
     def step(self, state):
         solver = self.solver
         y = self._inertial_target(state)
         x = self._initial_guess(state)
         self.prepare(state.x)
-        rho = solver.chebyshev_rho
-        prev1 = prev2 = None
-        if rho > 0.0:
-            prev1, prev2 = x.copy(), x.copy()
-        omega = 1.0
-        for k in range(solver.iterations):
-            self.sweep(x, state.x, y)
-            if rho > 0.0:
-                omega = 1.0 if k == 0 else (2.0 / (2.0 - rho * rho) if k == 1
-                                            else 4.0 / (4.0 - rho * rho * omega))
-                if k > 0:
-                    chebyshev_mix(x, prev2, self.vertices, omega)
-                prev2[:] = prev1
-                prev1[:] = x
+        done, residual = self.solve(x, state.x, y, solver.iterations, solver.chebyshev_rho,
+                                    solver.vbd_tolerance)
         v_n = state.v
         self._finish(state, x)
         state.acceleration = (state.v - v_n) / self.h
-        return StepReport(sweeps=solver.iterations)
+        return StepReport(sweeps=done, residual=residual)
 
     def _initial_guess(self, state):
         """x_n + h v_n + h² ã (module docstring); pinned vertices at x_n."""
