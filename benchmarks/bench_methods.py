@@ -237,23 +237,25 @@ def stability(out_dir):
 def profile(out_dir, steps=20):
     """Wrap the kernels the implicit integrator calls (module attributes, so the
     hot loop is untouched) and time each stage over ``steps`` steps."""
-    import clothtool.sim.integrator as integ_mod
-    from clothtool.sim.model import build_model
-    from clothtool.sim.config import load_config
-    from clothtool.sim.solvers import make_integrator
-    from clothtool.sim.output import FrameWriter
+    import importlib
     import tempfile
 
-    stages = {"membrane_assemble": "membrane assembly (stretch+shear)",
-              "dihedral_assemble": "bending assembly (dihedral)",
-              "quadratic_gradient": "bending (quadratic)",
-              "block_multiply": "damping products",
-              "filtered_pcg": "linear solve (PCG)",
-              "resolve_collisions": "collisions (projection)",
-              "contact_constraints": "collisions (contact constraints)",
-              "apply_friction": "collisions (friction)",
-              "membrane_total_energy": "line search: membrane energy",
-              "dihedral_total_energy": "line search: bending energy"}
+    from clothtool.sim.config import load_config
+    from clothtool.sim.methods import make_integrator
+    from clothtool.sim.model import build_model
+    from clothtool.sim.output import FrameWriter
+
+    # (module, kernel) → stage; each is looked up in the module that calls it
+    stages = {("clothtool.sim.energy", "membrane_assemble"): "membrane assembly (stretch+shear)",
+              ("clothtool.sim.energy", "dihedral_assemble"): "bending assembly (dihedral)",
+              ("clothtool.sim.energy", "quadratic_gradient"): "bending (quadratic)",
+              ("clothtool.sim.blocksparse", "block_multiply"): "damping products",
+              ("clothtool.sim.newton", "filtered_pcg"): "linear solve (PCG)",
+              ("clothtool.sim.newton", "resolve_collisions"): "collisions (projection)",
+              ("clothtool.sim.newton", "contact_constraints"): "collisions (contact constraints)",
+              ("clothtool.sim.newton", "apply_friction"): "collisions (friction)",
+              ("clothtool.sim.energy", "membrane_total_energy"): "line search: membrane energy",
+              ("clothtool.sim.energy", "dihedral_total_energy"): "line search: bending energy"}
     scenes = {
         "full (bending, damping 0.01 s, sphere, pins)": dict(
             material={"damping": 0.01}, extra={}),
@@ -269,9 +271,10 @@ def profile(out_dir, steps=20):
             cfg["scene"] = {"pins": [], "colliders": []}
         config = load_config(cfg)
         model = build_model(config)
-        present = {k: v for k, v in stages.items() if hasattr(integ_mod, k)}
+        modules = {k: importlib.import_module(k[0]) for k in stages}
+        present = {k: v for k, v in stages.items() if hasattr(modules[k], k[1])}
         timers = {k: [0.0, 0] for k in present}
-        originals = {k: getattr(integ_mod, k) for k in present}
+        originals = {k: getattr(modules[k], k[1]) for k in present}
 
         def wrap(name, fn):
             def timed(*a, **kw):
@@ -287,7 +290,7 @@ def profile(out_dir, steps=20):
         integ.step(state)  # compile
         for k in present:
             timers[k] = [0.0, 0]
-            setattr(integ_mod, k, wrap(k, originals[k]))
+            setattr(modules[k], k[1], wrap(k, originals[k]))
         out_time = 0.0
         try:
             with tempfile.TemporaryDirectory() as tmp, FrameWriter(tmp, model.faces, model.mesh.uv) as w:
@@ -300,12 +303,13 @@ def profile(out_dir, steps=20):
                     w.write_frame(frame, state.x)
                     w.write_stats(dict(frame=frame, time=state.time, kinetic=kinetic, elastic=elastic,
                                        gravity=gravity, newton_iterations=1, cg_iterations=0,
-                                       residual=0.0, max_stretch=stretch, wall_s=0.0))
+                                       residual=0.0, max_stretch=stretch, wall_s=0.0, sweeps=0,
+                                       substeps=0))
                     out_time += time.perf_counter() - t0
                 total = time.perf_counter() - started
         finally:
             for k, fn in originals.items():
-                setattr(integ_mod, k, fn)
+                setattr(modules[k], k[1], fn)
         accounted = sum(t for t, _ in timers.values()) + out_time
         for k, label in present.items():
             t, n = timers[k]

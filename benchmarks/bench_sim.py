@@ -47,7 +47,7 @@ def _run(overrides, frames):
     iterations, largest principal stretch) or None on a blow-up."""
     from clothtool.errors import NumericalError
     from clothtool.sim.config import load_config
-    from clothtool.sim.integrator import ImplicitEuler
+    from clothtool.sim.solvers.implicit import ImplicitEuler
     from clothtool.sim.model import build_model
 
     cfg = load_config(SCENE, overrides=overrides)

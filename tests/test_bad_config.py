@@ -2,7 +2,7 @@
 
 Every broken config gives exit code 2 and one line naming the key (or the YAML line);
 nothing is written. A run that blows up gives exit code 3 naming the frame, and keeps
-the frames and ``stats.csv`` rows written before it. Skipped until the simulator is there.
+the frames and ``stats.csv`` rows written before it.
 """
 
 import csv
@@ -15,10 +15,8 @@ import time
 import pytest
 from click.testing import CliRunner
 
-pytest.importorskip("clothtool.sim.config")
-
-from clothtool.cli import main  # noqa: E402
-from clothtool.io.ply import read_ply  # noqa: E402
+from clothtool.cli import main
+from clothtool.io.ply import read_ply
 
 GOOD = """\
 mesh:

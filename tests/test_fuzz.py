@@ -246,7 +246,9 @@ VALUES = st.recursive(SCALARS, lambda inner: st.lists(inner, max_size=4)
 
 @pytest.fixture(scope="module")
 def load_config():
-    return pytest.importorskip("clothtool.sim.config").load_config
+    from clothtool.sim.config import load_config
+
+    return load_config
 
 
 def config_outcome(load, source):

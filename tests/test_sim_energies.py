@@ -32,9 +32,9 @@ def rel_error(a, b):
     return np.linalg.norm(a - b) / np.linalg.norm(b)
 
 
-def membrane(x, dinv, area, ks, kh, project=False):
+def membrane(x, dr_inv, area, ks, kh, project=False):
     g, h = np.zeros(9), np.zeros((9, 9))
-    e = membrane_element(x[0:3], x[3:6], x[6:9], dinv, area, ks, kh, project, g, h, np.zeros((6, 6)))
+    e = membrane_element(x[0:3], x[3:6], x[6:9], dr_inv, area, ks, kh, project, g, h, np.zeros((6, 6)))
     return e, g, h
 
 
@@ -68,11 +68,11 @@ def random_hinge(rng):
 @pytest.mark.parametrize("seed", range(5))
 def test_membrane_gradient_and_hessian_match_finite_differences(seed):
     rng = np.random.default_rng(seed)
-    x, dinv, area = random_triangle(rng)
+    x, dr_inv, area = random_triangle(rng)
     ks, kh = 3.0, 2.0
-    _, g, h = membrane(x, dinv, area, ks, kh)
-    assert rel_error(g, central_difference(lambda y: membrane_energy(y[0:3], y[3:6], y[6:9], dinv, area, ks, kh), x)) < FD_TOL
-    assert rel_error(h, central_difference(lambda y: membrane(y, dinv, area, ks, kh)[1], x)) < FD_TOL
+    _, g, h = membrane(x, dr_inv, area, ks, kh)
+    assert rel_error(g, central_difference(lambda y: membrane_energy(y[0:3], y[3:6], y[6:9], dr_inv, area, ks, kh), x)) < FD_TOL
+    assert rel_error(h, central_difference(lambda y: membrane(y, dr_inv, area, ks, kh)[1], x)) < FD_TOL
 
 
 @pytest.mark.parametrize("seed", range(5))
@@ -168,7 +168,7 @@ def test_projected_membrane_hessian_is_psd(x, dm):
 @given(f=arrays(np.float64, 6, elements=st.floats(-2, 2, allow_nan=False)),
        k=st.floats(0.01, 10), term=st.sampled_from(["stretch", "shear"]))
 def test_projection_is_the_eigenvalue_clamp_of_the_F_space_hessian(f, k, term):
-    """With x0 = 0, D_m = I, A = 1 the (x1, x2) block of the element Hessian is ∂²Ψ/∂F²,
+    """With x0 = 0, D_r = I, A = 1 the (x1, x2) block of the element Hessian is ∂²Ψ/∂F²,
     so each term's projected block must equal V max(Λ, 0) Vᵀ of its exact one
     (the terms are projected one by one, as in Kim 2020)."""
     ks, kh = (k, 0.0) if term == "stretch" else (0.0, k)

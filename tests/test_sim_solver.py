@@ -10,11 +10,12 @@ import scipy.sparse.linalg as spla
 from clothtool.errors import NumericalError
 from clothtool.io.ply import read_ply, write_ply
 from clothtool.sim.api import simulate
-from clothtool.sim.blocksparse import BlockPattern, block_multiply, filtered_pcg
+from clothtool.sim.blocksparse import (BlockJacobi, BlockMatrix, BlockPattern, ConstraintFilter,
+                                      block_multiply, filtered_pcg)
 from clothtool.sim.config import load_config
-from clothtool.sim.integrator import ImplicitEuler
 from clothtool.sim.model import build_model
-from clothtool.sim.multigrid import NO_MULTIGRID, Hierarchy, setup_levels, vcycle
+from clothtool.sim.multigrid import Hierarchy
+from clothtool.sim.solvers.implicit import ImplicitEuler
 
 
 def config(**sections):
@@ -39,13 +40,10 @@ def run(tmp_path, cfg, name="out"):
 
 def assembled_system(model, integrator, x):
     """The Newton matrix M/h² + K at x as a scipy matrix."""
-    integrator._elastic_derivatives(x)
-    values = integrator._values.copy()
-    h = integrator.h
-    values[model.pattern.diag] += (model.mass / h**2)[:, None, None] * np.eye(3)
-    p = model.pattern
-    n = 3 * model.n_vertices
-    return values, sp.bsr_matrix((values, p.col, p.row_ptr), shape=(n, n)).tocsr()
+    matrix = BlockMatrix(model.pattern)
+    integrator.elastic.assemble(x, np.zeros_like(x), matrix.values)
+    matrix.add_diagonal(model.mass / integrator.h**2)
+    return matrix, matrix.to_scipy()
 
 
 def test_block_product_and_filtered_pcg_match_scipy():
@@ -54,18 +52,18 @@ def test_block_product_and_filtered_pcg_match_scipy():
     integ = ImplicitEuler(model, cfg.solver, cfg.step)
     rng = np.random.default_rng(0)
     x = model.mesh.positions + 0.05 * rng.normal(size=model.mesh.positions.shape)
-    values, matrix = assembled_system(model, integ, x)
+    blocks, matrix = assembled_system(model, integ, x)
     p = model.pattern
     v = rng.normal(size=x.shape)
     y = np.empty_like(v)
-    block_multiply(p.row_ptr, p.col, values, v, y)
+    block_multiply(p.row_ptr, p.col, blocks.values, v, y)
     np.testing.assert_allclose(y.ravel(), matrix @ v.ravel(), rtol=1e-12)
     np.testing.assert_allclose(matrix.toarray(), matrix.toarray().T, atol=1e-9)
 
     b = rng.normal(size=x.shape)
     sol = np.zeros_like(b)
-    its, res = filtered_pcg(p.row_ptr, p.col, values, p.diag, b, sol, model.kind,
-                            np.zeros_like(b), True, 1e-10, 5000, NO_MULTIGRID)
+    its, res = filtered_pcg(blocks, b, sol, ConstraintFilter(model.kind, np.zeros_like(b)), 1e-10,
+                            5000, BlockJacobi())
     assert res <= 1e-10 and its > 0
     free = np.repeat(model.free, 3)
     expected = spla.spsolve(matrix[free][:, free].tocsc(), b.ravel()[free])
@@ -186,14 +184,14 @@ def constrained_system(nx=12):
     integ = ImplicitEuler(model, cfg.solver, cfg.step)
     rng = np.random.default_rng(2)
     x = model.mesh.positions * 1.05 + 0.01 * rng.normal(size=model.mesh.positions.shape)
-    values, matrix = assembled_system(model, integ, x)
+    blocks, matrix = assembled_system(model, integ, x)
     kind = model.kind.copy()
     normal = np.zeros((model.n_vertices, 3))
     held = [5, 30, 77]
     kind[held] = 2
     normal[held] = rng.normal(size=(3, 3))
     normal[held] /= np.linalg.norm(normal[held], axis=1)[:, None]
-    return model, values, matrix, kind, normal
+    return model, blocks, matrix, kind, normal
 
 
 def filter_matrix(kind, normal):
@@ -203,13 +201,10 @@ def filter_matrix(kind, normal):
 
 
 def test_multigrid_preconditioner_is_symmetric_positive_definite_on_the_free_space():
-    model, values, matrix, kind, normal = constrained_system()
-    p = model.pattern
-    graph = BlockPattern(model.n_vertices, model.faces)
-    hierarchy = Hierarchy(p.row_ptr, p.col, (graph.row_ptr, graph.col))
-    mg = hierarchy.arrays()
+    model, blocks, matrix, kind, normal = constrained_system()
+    hierarchy = Hierarchy.for_mesh(model.pattern, model.faces)
     assert hierarchy.node_off.size >= 3  # at least two levels below the mesh
-    setup_levels(values, kind, normal, True, mg)
+    hierarchy.setup(blocks, ConstraintFilter(kind, normal))
     n = 3 * model.n_vertices
     s = filter_matrix(kind, normal)
     b = np.empty((n, n))
@@ -217,7 +212,7 @@ def test_multigrid_preconditioner_is_symmetric_positive_definite_on_the_free_spa
     for a in range(n):
         e = np.zeros(n)
         e[a] = 1.0
-        vcycle((s @ e).reshape(-1, 3), out, mg)
+        hierarchy.apply((s @ e).reshape(-1, 3), out)
         b[:, a] = s @ out.ravel()
     np.testing.assert_allclose(b, b.T, atol=1e-12 * np.abs(b).max())
     u, sing, _ = np.linalg.svd(s)
@@ -227,17 +222,15 @@ def test_multigrid_preconditioner_is_symmetric_positive_definite_on_the_free_spa
 
 @pytest.mark.parametrize("preconditioner", ["jacobi", "multigrid"])
 def test_filtered_pcg_with_each_preconditioner_matches_a_direct_solve(preconditioner):
-    model, values, matrix, kind, normal = constrained_system()
-    p = model.pattern
-    mg = NO_MULTIGRID
+    model, blocks, matrix, kind, normal = constrained_system()
+    constraints = ConstraintFilter(kind, normal)
+    mg = BlockJacobi()
     if preconditioner == "multigrid":
-        graph = BlockPattern(model.n_vertices, model.faces)
-        mg = Hierarchy(p.row_ptr, p.col, (graph.row_ptr, graph.col)).arrays()
+        mg = Hierarchy.for_mesh(model.pattern, model.faces)
     rng = np.random.default_rng(5)
     b = rng.normal(size=(model.n_vertices, 3))
     sol = np.zeros_like(b)
-    its, res = filtered_pcg(p.row_ptr, p.col, values, p.diag, b, sol, kind, normal, True,
-                            1e-10, 5000, mg)
+    its, res = filtered_pcg(blocks, b, sol, constraints, 1e-10, 5000, mg)
     assert res <= 1e-10
     s = filter_matrix(kind, normal)
     a = matrix.toarray()
@@ -245,8 +238,8 @@ def test_filtered_pcg_with_each_preconditioner_matches_a_direct_solve(preconditi
     expected = np.linalg.lstsq(s @ a @ s + (np.eye(len(s)) - s), s @ b.ravel(), rcond=None)[0]
     np.testing.assert_allclose(sol.ravel(), expected, rtol=1e-6, atol=1e-10 * np.abs(expected).max())
     if preconditioner == "multigrid":
-        jacobi_its, _ = filtered_pcg(p.row_ptr, p.col, values, p.diag, b, np.zeros_like(b), kind,
-                                     normal, True, 1e-10, 5000, NO_MULTIGRID)
+        jacobi_its, _ = filtered_pcg(blocks, b, np.zeros_like(b), constraints, 1e-10, 5000,
+                                     BlockJacobi())
         assert its < jacobi_its
 
 
@@ -255,7 +248,7 @@ def test_sliding_constraint_keeps_the_prescribed_normal_motion():
     cfg = load_config(config())
     model = build_model(cfg)
     integ = ImplicitEuler(model, cfg.solver, cfg.step)
-    values, matrix = assembled_system(model, integ, model.mesh.positions)
+    blocks, matrix = assembled_system(model, integ, model.mesh.positions)
     rng = np.random.default_rng(1)
     n = model.n_vertices
     kind = model.kind.copy()
@@ -267,9 +260,8 @@ def test_sliding_constraint_keeps_the_prescribed_normal_motion():
     b = rng.normal(size=(n, 3))
     sol = np.zeros((n, 3))
     sol[held] = 0.01 * normal[held]  # prescribed normal motion
-    p = model.pattern
-    its, res = filtered_pcg(p.row_ptr, p.col, values, p.diag, b, sol, kind, normal, True, 1e-10,
-                            5000, NO_MULTIGRID)
+    its, res = filtered_pcg(blocks, b, sol, ConstraintFilter(kind, normal), 1e-10, 5000,
+                            BlockJacobi())
     assert res <= 1e-10
     np.testing.assert_allclose(np.einsum("ij,ij->i", sol[held], normal[held]), 0.01, rtol=1e-12)
     r = (b.ravel() - matrix @ sol.ravel()).reshape(n, 3)

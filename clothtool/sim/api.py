@@ -1,8 +1,9 @@
 """``clothtool.simulate``: config → PLY frames and statistics."""
 
+import statistics
 import sys
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -20,12 +21,23 @@ class SimulationResult:
     cg_iterations: int
     max_stretch: float
     wall_s: float
+    sweeps: int = 0
+    substeps: int = 0
+    first_step_s: float = 0.0  # the first solver step, which includes compiling the kernels
+    step_s: list = field(default_factory=list)  # wall time of every later solver step
 
     def describe(self):
-        per_step = 1000.0 * self.wall_s / max(self.steps, 1)
-        return (f"{self.frames_written} frames in {self.output_dir}/ ({self.steps} steps, "
-                f"{per_step:.1f} ms/step, {self.cg_iterations / max(self.steps, 1):.1f} CG "
-                f"iterations/step, max stretch {self.max_stretch:.4f})")
+        steps = max(self.steps, 1)
+        timing = f"compile+first step {self.first_step_s:.2f} s"
+        if self.step_s:
+            timing += (f", then {1000.0 * statistics.median(self.step_s):.1f} ms/step median, "
+                       f"{1000.0 * statistics.fmean(self.step_s):.1f} mean")
+        work = [f"{self.cg_iterations / steps:.1f} CG iterations/step" if self.newton_iterations
+                else "", f"{self.sweeps / steps:.0f} sweeps/step" if self.sweeps else "",
+                f"{self.substeps / steps:.0f} internal steps/step" if self.substeps else ""]
+        return (f"{self.frames_written} frames in {self.output_dir}/ ({self.steps} steps; {timing}; "
+                + ", ".join(w for w in work if w) + (", " if any(work) else "")
+                + f"max stretch {self.max_stretch:.4f})")
 
 
 def simulate(config_or_path, *, output_dir=None, overrides=None, progress=True):
@@ -41,9 +53,9 @@ def simulate(config_or_path, *, output_dir=None, overrides=None, progress=True):
     from tqdm import tqdm
 
     from clothtool.sim.integrator import StepReport
+    from clothtool.sim.methods import make_integrator
     from clothtool.sim.model import build_model
     from clothtool.sim.output import FrameWriter
-    from clothtool.sim.solvers import make_integrator
 
     if isinstance(config_or_path, Config):
         if overrides:
@@ -59,6 +71,7 @@ def simulate(config_or_path, *, output_dir=None, overrides=None, progress=True):
     max_speed = config.solver.max_speed
     totals = StepReport()
     written, worst_stretch = 0, 0.0
+    step_times = []
     started = time.perf_counter()
 
     with FrameWriter(out_dir, model.faces, model.mesh.uv) as writer:
@@ -72,7 +85,8 @@ def simulate(config_or_path, *, output_dir=None, overrides=None, progress=True):
             writer.write_stats(dict(
                 frame=frame, time=state.time, kinetic=kinetic, elastic=elastic, gravity=gravity,
                 newton_iterations=report.newton_iterations, cg_iterations=report.cg_iterations,
-                residual=report.residual, max_stretch=stretch, wall_s=wall))
+                residual=report.residual, max_stretch=stretch, wall_s=wall, sweeps=report.sweeps,
+                substeps=report.substeps))
             written += 1
 
         record(0, StepReport(), 0.0)
@@ -82,27 +96,28 @@ def simulate(config_or_path, *, output_dir=None, overrides=None, progress=True):
             t0 = time.perf_counter()
             report = StepReport()
             for _ in range(substeps):
+                s0 = time.perf_counter()
                 try:
-                    step = integrator.step(state)
+                    report.add(integrator.step(state))
                 except NumericalError as exc:
                     raise NumericalError(_blowup(frame, str(exc), out_dir)) from None
-                report.newton_iterations += step.newton_iterations
-                report.cg_iterations += step.cg_iterations
-                report.residual = max(report.residual, step.residual)
+                step_times.append(time.perf_counter() - s0)
                 speed = _max_speed(state.v)
                 if not (np.all(np.isfinite(state.x)) and speed <= max_speed):
                     what = ("non-finite positions or velocities" if not np.isfinite(speed)
                             else f"velocities exploded (max speed {speed:.3g} m/s > solver.max_speed "
                                  f"{max_speed:g})")
                     raise NumericalError(_blowup(frame, what, out_dir))
-            totals.newton_iterations += report.newton_iterations
-            totals.cg_iterations += report.cg_iterations
+            totals.add(report)
             if frame % every == 0:
                 record(frame, report, time.perf_counter() - t0)
         bar.close()
 
     return SimulationResult(out_dir, written, frames * substeps, totals.newton_iterations,
-                            totals.cg_iterations, worst_stretch, time.perf_counter() - started)
+                            totals.cg_iterations, worst_stretch, time.perf_counter() - started,
+                            sweeps=totals.sweeps, substeps=totals.substeps,
+                            first_step_s=step_times[0] if step_times else 0.0,
+                            step_s=step_times[1:])
 
 
 def _max_speed(v):

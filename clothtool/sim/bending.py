@@ -53,14 +53,21 @@ def dihedral_element(xi, xj, xk, xl, theta_rest, coef, project, grad, hess):
 
 
 @njit(cache=True)
+def _hinge_gradient(x, hinge, h, theta_rest, g):
+    """θ − θ̄ of hinge h, with ∇θ (12,) in g; NaN when the hinge is degenerate."""
+    theta = dihedral_angle_gradient(load(x, hinge[h, 0]), load(x, hinge[h, 1]),
+                                    load(x, hinge[h, 2]), load(x, hinge[h, 3]), g)
+    return theta - theta_rest[h]
+
+
+@njit(cache=True)
 def dihedral_assemble(x, hinge, theta_rest, coef, slots, grad, values):
-    """W_bend(x); adds ∇W to grad (N, 3) and the Gauss–Newton blocks 2c ∇θ∇θᵀ to values."""
+    """W_bend(x); adds ∇W = 2c(θ − θ̄)∇θ to grad (N, 3) and the Gauss–Newton blocks
+    2c ∇θ∇θᵀ to values."""
     g = np.empty(12)
     total = 0.0
     for h in range(hinge.shape[0]):
-        theta = dihedral_angle_gradient(load(x, hinge[h, 0]), load(x, hinge[h, 1]),
-                                        load(x, hinge[h, 2]), load(x, hinge[h, 3]), g)
-        delta = theta - theta_rest[h]
+        delta = _hinge_gradient(x, hinge, h, theta_rest, g)
         if delta != delta:  # degenerate hinge (now or at rest): no bending there
             continue
         c2 = 2.0 * coef[h]
@@ -75,6 +82,29 @@ def dihedral_assemble(x, hinge, theta_rest, coef, slots, grad, values):
                     for q in range(3):
                         block[p, q] += c2 * g[3 * a + p] * g[3 * b + q]
     return total
+
+
+@njit(cache=True)
+def dihedral_gradient(x, hinge, theta_rest, coef, grad, v, damp, out):
+    """Adds ∇W_bend to grad, without assembling; with damp > 0 also adds
+    damp · 2c ∇θ(∇θ·v) (the Gauss–Newton Hessian of :func:`dihedral_assemble` times v) to out."""
+    g = np.empty(12)
+    for h in range(hinge.shape[0]):
+        delta = _hinge_gradient(x, hinge, h, theta_rest, g)
+        c2 = 2.0 * coef[h]
+        if delta != delta:  # degenerate hinge: no bending there
+            continue
+        gv = 0.0
+        if damp > 0.0:
+            for a in range(4):
+                for p in range(3):
+                    gv += g[3 * a + p] * v[hinge[h, a], p]
+        for a in range(4):
+            i = hinge[h, a]
+            for p in range(3):
+                grad[i, p] += c2 * delta * g[3 * a + p]
+                if damp > 0.0:
+                    out[i, p] += damp * c2 * gv * g[3 * a + p]
 
 
 @njit(cache=True)
@@ -131,3 +161,15 @@ def quadratic_gradient(x, hinge, w, coef, grad):
                 for p in range(3):
                     grad[hinge[h, a], p] += g[3 * a + p]
     return total
+
+
+@njit(cache=True)
+def quadratic_product(hinge, w, coef, damp, v, out):
+    """out += damp · 2c w(wᵀv) per hinge (the constant quadratic-bending Hessian times v)."""
+    for h in range(hinge.shape[0]):
+        for p in range(3):
+            wv = 0.0
+            for a in range(4):
+                wv += w[h, a] * v[hinge[h, a], p]
+            for a in range(4):
+                out[hinge[h, a], p] += damp * 2.0 * coef[h] * w[h, a] * wv

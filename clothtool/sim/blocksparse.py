@@ -19,13 +19,18 @@ of the solution keep their initial (prescribed) values exactly. The stop
 test is on the true relative residual ‖S(b − Ax)‖ / ‖S b‖: when the recurrence
 says converged, the residual is recomputed from its definition and iteration
 continues if that one is not.
+
+The Python side passes a :class:`BlockMatrix` (pattern + values), a
+:class:`ConstraintFilter` (kind, normal) and a preconditioner object
+(:class:`BlockJacobi` or :class:`~clothtool.sim.multigrid.Hierarchy`); the numba
+kernels underneath take the plain arrays these unpack to.
 """
 
 import numpy as np
 from numba import njit
 
 from clothtool.sim.filter import PINNED, apply_filter
-from clothtool.sim.multigrid import setup_levels, vcycle
+from clothtool.sim.multigrid import NO_MULTIGRID, setup_levels, vcycle
 from clothtool.vec3 import inverse3
 
 
@@ -59,6 +64,66 @@ class BlockPattern:
 
     def zeros(self):
         return np.zeros((self.nnzb, 3, 3))
+
+
+class BlockMatrix:
+    """A symmetric block-CSR matrix: a :class:`BlockPattern` and its values (nnzb, 3, 3)."""
+
+    def __init__(self, pattern, values=None):
+        self.pattern = pattern
+        self.values = pattern.zeros() if values is None else values
+
+    @property
+    def row_ptr(self):
+        return self.pattern.row_ptr
+
+    @property
+    def col(self):
+        return self.pattern.col
+
+    @property
+    def diag(self):
+        return self.pattern.diag
+
+    def multiply(self, x, out):
+        """out = A x."""
+        block_multiply(self.pattern.row_ptr, self.pattern.col, self.values, x, out)
+        return out
+
+    def residual(self, b, x, out):
+        """out = b − A x."""
+        residual(self.pattern.row_ptr, self.pattern.col, self.values, b, x, out)
+        return out
+
+    def add_diagonal(self, d):
+        """A += diag(d_v I₃) for a per-vertex scalar d (N,)."""
+        self.values[self.pattern.diag] += d[:, None, None] * np.eye(3)
+
+    def to_scipy(self):
+        import scipy.sparse as sps
+
+        n = 3 * self.pattern.n
+        return sps.bsr_matrix((self.values, self.pattern.col, self.pattern.row_ptr),
+                              shape=(n, n)).tocsr()
+
+
+class ConstraintFilter:
+    """Baraff–Witkin's S per vertex (``filter``): ``kind`` (N,) int8 FREE/PINNED/SLIDING and
+    ``normal`` (N, 3) for the sliding ones; ``active`` is False when nothing is constrained."""
+
+    def __init__(self, kind, normal, active=True):
+        self.kind = kind
+        self.normal = normal
+        self.active = bool(active)
+
+
+class BlockJacobi:
+    """The block-Jacobi preconditioner (inverses of the 3×3 diagonal blocks, set up per solve)."""
+
+    arrays = NO_MULTIGRID
+
+    def setup(self, matrix, constraints):
+        """Nothing to set up ahead of the solve (the inverses are taken inside it)."""
 
 
 @njit(cache=True)
@@ -111,8 +176,6 @@ def _apply_inverse(inv, r, z):
         z[i, 2] = b[2, 0] * r[i, 0] + b[2, 1] * r[i, 1] + b[2, 2] * r[i, 2]
 
 
-
-
 @njit(cache=True)
 def block_jacobi(values, diag, kind):
     """Inverses of the diagonal blocks (zero for pinned vertices)."""
@@ -162,16 +225,25 @@ def _precondition(inv, r, kind, normal, constrained, z, mg):
         apply_filter(z, kind, normal)
 
 
-@njit(cache=True)
-def filtered_pcg(row_ptr, col, values, diag, b, x, kind, normal, constrained, tol, max_iter, mg):
+def filtered_pcg(matrix, b, x, constraints, tol, max_iter, preconditioner):
     """Solve S(A x − b) = 0 from x, whose constrained components (I − S)x stay as given.
 
-    ``kind`` (N,) int8 and ``normal`` (N, 3) define S; ``constrained`` says whether
-    any vertex is constrained (else the filter is skipped). ``mg``: the arrays of a
-    :class:`~clothtool.sim.multigrid.Hierarchy` for the V-cycle preconditioner, or
-    ``NO_MULTIGRID`` for block Jacobi.
-    Returns (iterations, relative true residual ‖S(b − Ax)‖ / ‖S b‖).
+    ``matrix``: a :class:`BlockMatrix`; ``constraints``: a :class:`ConstraintFilter`
+    (S); ``preconditioner``: :class:`BlockJacobi` or a
+    :class:`~clothtool.sim.multigrid.Hierarchy`. Stops when the true relative residual
+    ‖S(b − Ax)‖ / ‖S b‖ ≤ ``tol`` or after ``max_iter`` iterations.
+    Returns (iterations, relative true residual).
     """
+    return filtered_pcg_arrays(matrix.pattern.row_ptr, matrix.pattern.col, matrix.values,
+                               matrix.pattern.diag, b, x, constraints.kind, constraints.normal,
+                               constraints.active, tol, max_iter, preconditioner.arrays)
+
+
+@njit(cache=True)
+def filtered_pcg_arrays(row_ptr, col, values, diag, b, x, kind, normal, constrained, tol,
+                        max_iter, mg):
+    """:func:`filtered_pcg` on plain arrays: ``constrained`` False skips the filter; ``mg``
+    the arrays of a multigrid hierarchy, or ``NO_MULTIGRID`` for block Jacobi."""
     n = b.shape[0]
     inv = block_jacobi(values, diag, kind)
     if len(mg[0]) > 1:

@@ -1,4 +1,4 @@
-"""Simulation config (spec §5): YAML → validated, frozen dataclasses.
+"""Simulation config: YAML → validated, frozen dataclasses.
 
 Every problem is an :class:`~clothtool.errors.InputError` whose one-line message
 names the file and the dotted key (``material.stretch``), says what is wrong and,
@@ -23,10 +23,11 @@ from typing import Mapping
 import yaml
 
 from clothtool.errors import InputError
+from clothtool.sim import methods
 
 PLANES = ("xy", "xz", "yz")
 BEND_MODELS = ("dihedral", "quadratic")
-METHODS = ("implicit", "mass-spring", "pbd", "xpbd", "projective", "explicit")
+METHODS = tuple(methods.METHODS)
 PRECONDITIONERS = ("jacobi", "multigrid")
 PBD_VARIANTS = ("gauss-seidel", "jacobi")
 
@@ -344,7 +345,9 @@ def _build_config(raw, base):
         if not isinstance(value, dict):
             raise _type_error(name, "a mapping", value)
         sections[name] = _build_section(cls, value, name, base)
-    return Config(**sections)
+    config = Config(**sections)
+    methods.check_supported(config)
+    return config
 
 
 def _build_section(cls, raw, prefix, base):

@@ -1,8 +1,8 @@
 """Baraff–Witkin stretch and shear in the finite-element form of Kim 2020.
 
 T. Kim, "A Finite Element Formulation of Baraff-Witkin Cloth", SCA 2020.
-With rest edge matrix D_m (from uv) and deformed edge matrix D_s = [x1 − x0, x2 − x0],
-the 3×2 deformation gradient F = D_s D_m⁻¹ has columns f0 = w_u, f1 = w_v (warp, weft).
+With rest edge matrix D_r (from uv) and deformed edge matrix D_d = [x1 − x0, x2 − x0],
+the 3×2 deformation gradient F = D_d D_r⁻¹ has columns f0 = w_u, f1 = w_v (warp, weft).
 Energy densities (J/m², stiffnesses in N/m), integrated over the rest area A:
 
     Ψ_stretch = k_s/2 · [(‖f0‖ − 1)² + (‖f1‖ − 1)²]
@@ -33,9 +33,9 @@ EPS = 1e-12
 
 
 @njit(cache=True)
-def _deformation(x0, x1, x2, dinv):
+def _deformation(x0, x1, x2, dr_inv):
     """F's columns f0, f1 and the shape-function weights α, β: f0 = Σ α_v x_v, f1 = Σ β_v x_v."""
-    a, b, c, d = dinv[0, 0], dinv[0, 1], dinv[1, 0], dinv[1, 1]
+    a, b, c, d = dr_inv[0, 0], dr_inv[0, 1], dr_inv[1, 0], dr_inv[1, 1]
     e1 = sub(x1, x0)
     e2 = sub(x2, x0)
     f0 = add(scale(a, e1), scale(c, e2))
@@ -52,9 +52,20 @@ def _density(f0, f1, k_stretch, k_shear):
 
 
 @njit(cache=True)
-def membrane_energy(x0, x1, x2, dinv, area, k_stretch, k_shear):
+def _stress(f0, f1, k_stretch, k_shear):
+    """∂Ψ/∂f0 = k_s(‖f0‖ − 1) f0/‖f0‖ + k_h s f1 and ∂Ψ/∂f1 (s = f0·f1)."""
+    n0 = max(np.sqrt(dot(f0, f0)), EPS)
+    n1 = max(np.sqrt(dot(f1, f1)), EPS)
+    s = dot(f0, f1)
+    g0 = add(scale(k_stretch * (n0 - 1.0) / n0, f0), scale(k_shear * s, f1))
+    g1 = add(scale(k_stretch * (n1 - 1.0) / n1, f1), scale(k_shear * s, f0))
+    return g0, g1
+
+
+@njit(cache=True)
+def membrane_energy(x0, x1, x2, dr_inv, area, k_stretch, k_shear):
     """A · (Ψ_stretch + Ψ_shear) of one triangle."""
-    f0, f1, _, _ = _deformation(x0, x1, x2, dinv)
+    f0, f1, _, _ = _deformation(x0, x1, x2, dr_inv)
     return area * _density(f0, f1, k_stretch, k_shear)
 
 
@@ -132,20 +143,15 @@ def _shear_hessian(f0, f1, k, project, out):
 
 
 @njit(cache=True)
-def membrane_element(x0, x1, x2, dinv, area, k_stretch, k_shear, project, grad, hess, h_f):
+def membrane_element(x0, x1, x2, dr_inv, area, k_stretch, k_shear, project, grad, hess, h_f):
     """Energy of one triangle; writes its gradient (9,) and Hessian (9, 9) (vertex-major).
 
     ``project``: PSD-project the Hessian through the closed-form eigensystems.
     ``h_f`` (6, 6) is workspace; it is left holding ∂²Ψ/∂vec F².
     """
-    f0, f1, alpha, beta = _deformation(x0, x1, x2, dinv)
-    n0 = max(np.sqrt(dot(f0, f0)), EPS)
-    n1 = max(np.sqrt(dot(f1, f1)), EPS)
-    s = dot(f0, f1)
+    f0, f1, alpha, beta = _deformation(x0, x1, x2, dr_inv)
     energy = area * _density(f0, f1, k_stretch, k_shear)
-    # ∂Ψ/∂f0, ∂Ψ/∂f1
-    g0 = add(scale(k_stretch * (n0 - 1.0) / n0, f0), scale(k_shear * s, f1))
-    g1 = add(scale(k_stretch * (n1 - 1.0) / n1, f1), scale(k_shear * s, f0))
+    g0, g1 = _stress(f0, f1, k_stretch, k_shear)
     h_f[:, :] = 0.0
     if k_stretch > 0.0:
         _stretch_block(f0, k_stretch, project, h_f, 0)
@@ -170,7 +176,7 @@ def membrane_element(x0, x1, x2, dinv, area, k_stretch, k_shear, project, grad, 
 
 
 @njit(cache=True)
-def membrane_assemble(x, faces, dinv, area, k_stretch, k_shear, slots, grad, values):
+def membrane_assemble(x, faces, dr_inv, area, k_stretch, k_shear, slots, grad, values):
     """W_membrane(x); adds its gradient to grad (N, 3) and projected Hessian blocks to values."""
     g = np.empty(9)
     hess = np.empty((9, 9))
@@ -178,7 +184,7 @@ def membrane_assemble(x, faces, dinv, area, k_stretch, k_shear, slots, grad, val
     total = 0.0
     for t in range(faces.shape[0]):
         total += membrane_element(load(x, faces[t, 0]), load(x, faces[t, 1]), load(x, faces[t, 2]),
-                                  dinv[t], area[t], k_stretch, k_shear, True, g, hess, work)
+                                  dr_inv[t], area[t], k_stretch, k_shear, True, g, hess, work)
         for a in range(3):
             v = faces[t, a]
             for p in range(3):
@@ -192,21 +198,57 @@ def membrane_assemble(x, faces, dinv, area, k_stretch, k_shear, slots, grad, val
 
 
 @njit(cache=True)
-def membrane_total_energy(x, faces, dinv, area, k_stretch, k_shear):
+def membrane_gradient(x, faces, dr_inv, area, k_stretch, k_shear, grad):
+    """Adds ∇W_membrane to grad (N, 3), without the Hessian (the gradient of
+    :func:`membrane_element`: A (α_v ∂Ψ/∂f0 + β_v ∂Ψ/∂f1) at vertex v)."""
+    for t in range(faces.shape[0]):
+        f0, f1, alpha, beta = _deformation(load(x, faces[t, 0]), load(x, faces[t, 1]),
+                                           load(x, faces[t, 2]), dr_inv[t])
+        g0, g1 = _stress(f0, f1, k_stretch, k_shear)
+        a = area[t]
+        for v in range(3):
+            vi = faces[t, v]
+            for p in range(3):
+                grad[vi, p] += a * (alpha[v] * g0[p] + beta[v] * g1[p])
+
+
+@njit(cache=True)
+def membrane_hessian_product(x, faces, dr_inv, area, k_stretch, k_shear, scale_by, v, out):
+    """out += scale_by · K_membrane(x) v, element by element (the projected Hessians of
+    :func:`membrane_element`, not assembled)."""
+    g = np.empty(9)
+    hess = np.empty((9, 9))
+    work = np.empty((6, 6))
+    for t in range(faces.shape[0]):
+        membrane_element(load(x, faces[t, 0]), load(x, faces[t, 1]), load(x, faces[t, 2]),
+                         dr_inv[t], area[t], k_stretch, k_shear, True, g, hess, work)
+        for a in range(3):
+            ia = faces[t, a]
+            for p in range(3):
+                acc = 0.0
+                for b in range(3):
+                    ib = faces[t, b]
+                    for q in range(3):
+                        acc += hess[3 * a + p, 3 * b + q] * v[ib, q]
+                out[ia, p] += scale_by * acc
+
+
+@njit(cache=True)
+def membrane_total_energy(x, faces, dr_inv, area, k_stretch, k_shear):
     total = 0.0
     for t in range(faces.shape[0]):
         total += membrane_energy(load(x, faces[t, 0]), load(x, faces[t, 1]), load(x, faces[t, 2]),
-                                 dinv[t], area[t], k_stretch, k_shear)
+                                 dr_inv[t], area[t], k_stretch, k_shear)
     return total
 
 
 @njit(cache=True)
-def max_principal_stretch(x, faces, dinv):
+def max_principal_stretch(x, faces, dr_inv):
     """Largest λ1 = √(largest eigenvalue of FᵀF) over all triangles."""
     worst = 0.0
     for t in range(faces.shape[0]):
         f0, f1, _, _ = _deformation(load(x, faces[t, 0]), load(x, faces[t, 1]),
-                                    load(x, faces[t, 2]), dinv[t])
+                                    load(x, faces[t, 2]), dr_inv[t])
         c00, c11, c01 = dot(f0, f0), dot(f1, f1), dot(f0, f1)
         half = 0.5 * (c00 - c11)
         lam = 0.5 * (c00 + c11) + np.sqrt(half * half + c01 * c01)

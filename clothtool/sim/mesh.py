@@ -1,4 +1,4 @@
-"""The rest mesh: a grid (spec §5) or a PLY file, with the rest coordinates of each vertex.
+"""The rest mesh: a grid or a PLY file, with the rest coordinates of each vertex.
 
 The rest shape of Baraff–Witkin cloth is its flat pattern: per-vertex (u, v) in
 metres. A grid's (u, v) are its own in-plane coordinates; a PLY's are its ``s t``
@@ -82,9 +82,9 @@ def _embed(uv):
 
 
 def rest_edge_matrices(mesh):
-    """Per-triangle 2×2 rest edge matrix D_m = [ū1 − ū0, ū2 − ū0] (columns).
+    """Per-triangle 2×2 rest edge matrix D_r = [ū1 − ū0, ū2 − ū0] (columns).
 
-    From the uv coordinates when present (so that the columns of F = D_s D_m⁻¹ are
+    From the uv coordinates when present (so that the columns of F = D_d D_r⁻¹ are
     the warp and weft directions w_u, w_v of Baraff–Witkin); otherwise in each
     rest triangle's tangent frame (:func:`clothtool.geometry.tangent_edge_matrices`).
     """

@@ -1,13 +1,15 @@
 """The Model: everything about a run that does not change while it runs.
 
-Rest data per triangle (D_m⁻¹, rest area), lumped masses m_v = Σ ρA/3, the
+Rest data per triangle (D_r⁻¹, rest area), lumped masses m_v = Σ ρA/3, the
 energies that are switched on and their parameters, per-hinge bending data,
 pins, colliders, and the block pattern of the system matrix with each element's
-block slots. A term whose stiffness is zero is left out entirely (no hinges,
+block slots, and the spring network of the spring-based methods (built on first use,
+then kept). A term whose stiffness is zero is left out entirely (no hinges,
 no pattern blocks, no kernels), as are pins and colliders when there are none.
 """
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -26,7 +28,7 @@ DEGENERATE = 1e-12  # rest triangle area relative to its squared longest edge
 @dataclass
 class Model:
     mesh: object  # RestMesh
-    dinv: np.ndarray  # (M, 2, 2) D_m⁻¹
+    dr_inv: np.ndarray  # (M, 2, 2) D_r⁻¹
     area: np.ndarray  # (M,) rest areas
     mass: np.ndarray  # (N,) lumped masses
     k_stretch: float
@@ -70,6 +72,14 @@ class Model:
     def has_colliders(self):
         return len(self.spheres) + len(self.planes) > 0
 
+    @cached_property
+    def springs(self):
+        """The spring network of ``mass-spring``, ``pbd``, ``xpbd`` and ``projective``
+        (:func:`~clothtool.sim.solvers.springs.build_springs`), built once."""
+        from clothtool.sim.solvers.springs import build_springs
+
+        return build_springs(self)
+
     def initial_state(self):
         """Rest positions at rest, pushed out of colliders."""
         from clothtool.sim.collide import resolve_collisions
@@ -88,8 +98,8 @@ def build_model(config):
     faces = mesh.faces
     if faces.min() < 0 or faces.max() >= n:
         raise InputError(f"{config.mesh.ply}: face index out of range")
-    dm = rest_edge_matrices(mesh)
-    det = dm[:, 0, 0] * dm[:, 1, 1] - dm[:, 0, 1] * dm[:, 1, 0]
+    dr = rest_edge_matrices(mesh)
+    det = dr[:, 0, 0] * dr[:, 1, 1] - dr[:, 0, 1] * dr[:, 1, 0]
     area = 0.5 * np.abs(det)
     edges = mesh.rest3d[faces] - mesh.rest3d[np.roll(faces, 1, axis=1)]
     longest = np.max(np.einsum("mkp,mkp->mk", edges, edges), axis=1)
@@ -97,7 +107,7 @@ def build_model(config):
     if len(bad):
         raise InputError(f"mesh: rest triangle {bad[0]} is degenerate (zero area in the rest "
                          f"{'uv' if mesh.uv is not None else 'mesh'}); {len(bad)} such triangles")
-    dinv = np.linalg.inv(dm)
+    dr_inv = np.linalg.inv(dr)
 
     mat = config.material
     mass = np.zeros(n)
@@ -130,7 +140,7 @@ def build_model(config):
         scatter_blocks(blocks, hinge_slots, constant)
 
     return Model(
-        mesh=mesh, dinv=dinv, area=area, mass=mass,
+        mesh=mesh, dr_inv=dr_inv, area=area, mass=mass,
         k_stretch=mat.stretch, k_shear=mat.shear, damping=mat.damping,
         gravity=np.asarray(config.scene.gravity, dtype=np.float64),
         bend_model=bend_model, hinge=hinge, hinge_rest_angle=rest_angle, hinge_coef=coef,

@@ -73,12 +73,31 @@ def _aggregate(row_ptr, col):
 
 
 class Hierarchy:
-    """Levels of coarse patterns, flattened into arrays with per-level offsets for numba.
+    """The multigrid preconditioner: levels of coarse patterns, flattened into arrays with
+    per-level offsets for numba (:attr:`arrays`).
 
     Level 0 is the matrix pattern (``row_ptr``, ``col``); its aggregation follows
     ``graph`` = (row_ptr, col) of the triangle adjacency (bending widens the
     matrix pattern, which would make aggregates too large).
     """
+
+    @classmethod
+    def for_mesh(cls, pattern, faces):
+        """The hierarchy of a matrix pattern whose aggregation follows the triangles."""
+        from clothtool.sim.blocksparse import BlockPattern
+
+        triangles = BlockPattern(pattern.n, faces)
+        return cls(pattern.row_ptr, pattern.col, graph=(triangles.row_ptr, triangles.col))
+
+    def setup(self, matrix, constraints):
+        """Coarse matrices of a :class:`~clothtool.sim.blocksparse.BlockMatrix` filtered by a
+        :class:`~clothtool.sim.blocksparse.ConstraintFilter` (done again inside every solve)."""
+        setup_levels(matrix.values, constraints.kind, constraints.normal, constraints.active,
+                     self.arrays)
+
+    def apply(self, rhs, out):
+        """out = B rhs (one cycle; :meth:`setup` first)."""
+        vcycle(rhs, out, self.arrays)
 
     def __init__(self, row_ptr, col, graph):
         levels = [(row_ptr, col)]
@@ -114,17 +133,26 @@ class Hierarchy:
         self.r = np.zeros((self.node_off[-1], 3))
         self.z = np.zeros((self.node_off[-1], 3))
         self.t = np.zeros((self.node_off[-1], 3))
-
-    def arrays(self):
-        """The tuple the numba kernels take (``NO_MULTIGRID`` has the same layout, no levels)."""
-        return (self.node_off, self.block_off, self.row_ptr, self.row_off, self.col, self.agg,
-                self.slot_map, self.values, self.diag_inv, self.coarsest, self.r, self.z, self.t)
+        # the tuple the numba kernels take (NO_MULTIGRID has the same layout, no levels)
+        self.arrays = (self.node_off, self.block_off, self.row_ptr, self.row_off, self.col,
+                       self.agg, self.slot_map, self.values, self.diag_inv, self.coarsest, self.r,
+                       self.z, self.t)
 
 
 NO_MULTIGRID = (np.zeros(1, np.int64), np.zeros(1, np.int64), np.zeros(1, np.int64),
                 np.zeros(1, np.int64), np.zeros(0, np.int64), np.zeros(0, np.int64),
                 np.zeros(0, np.int64), np.zeros((0, 3, 3)), np.zeros((0, 3, 3)), np.zeros((0, 0)),
                 np.zeros((0, 3)), np.zeros((0, 3)), np.zeros((0, 3)))
+
+
+def make_preconditioner(name, pattern, faces):
+    """``solver.preconditioner`` for a matrix pattern: a :class:`Hierarchy` for
+    ``multigrid`` (block Jacobi on meshes too small to coarsen), else block Jacobi."""
+    from clothtool.sim.blocksparse import BlockJacobi
+
+    if name == "multigrid" and pattern.n > COARSEST:
+        return Hierarchy.for_mesh(pattern, faces)
+    return BlockJacobi()
 
 
 @njit(cache=True)

@@ -1,4 +1,4 @@
-"""Simulation output (spec §5): ``frame_NNNNN.ply`` files and ``stats.csv``.
+"""Simulation output: ``frame_NNNNN.ply`` files and ``stats.csv``.
 
 Frames are binary little-endian PLY with double coordinates and the rest
 coordinates written as ``s t`` vertex properties (metres), so that
@@ -17,8 +17,10 @@ import numpy as np
 from clothtool.errors import InputError
 from clothtool.io.ply import write_ply
 
+# per frame: Newton steps, PCG iterations, constraint sweeps (pbd, xpbd) or local–global
+# iterations (projective), internal steps (explicit), each summed over the frame's steps
 STATS_COLUMNS = ("frame", "time", "kinetic", "elastic", "gravity", "newton_iterations",
-                 "cg_iterations", "residual", "max_stretch", "wall_s")
+                 "cg_iterations", "residual", "max_stretch", "wall_s", "sweeps", "substeps")
 FRAME_NAME = re.compile(r"frame_\d{5,}\.ply")
 
 

@@ -1,4 +1,4 @@
-"""Named pin sets on a grid (spec §5): vertex index = j·nx + i, row j = ny−1 is the top."""
+"""Named pin sets on a grid: vertex index = j·nx + i, row j = ny−1 is the top."""
 
 import numpy as np
 

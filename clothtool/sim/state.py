@@ -1,6 +1,10 @@
-"""What changes during a run: positions, velocities, time."""
+"""What changes during a run: positions, velocities, time, and the contact memory.
 
-from dataclasses import dataclass
+A :class:`State` is everything an integrator reads from one step to the next, so a
+copy of it taken between steps resumes the run exactly (same model, same config).
+"""
+
+from dataclasses import dataclass, field, fields
 
 import numpy as np
 
@@ -10,3 +14,17 @@ class State:
     x: np.ndarray  # (N, 3) positions, m
     v: np.ndarray  # (N, 3) velocities, m/s
     time: float = 0.0
+    # contact memory: vertices whose contact pulled at the last step are released at the next
+    released: np.ndarray = field(default=None)  # (N,) bool
+
+    def __post_init__(self):
+        if self.released is None:
+            self.released = np.zeros(len(self.x), dtype=np.bool_)
+
+    def copy(self):
+        """A deep copy (arrays copied), to save a state and resume from it later."""
+        return State(**{f.name: _copy(getattr(self, f.name)) for f in fields(self)})
+
+
+def _copy(value):
+    return value.copy() if isinstance(value, np.ndarray) else value

@@ -26,8 +26,10 @@ class Run:
     max_stretch: float = 0.0
     energy: list = field(default_factory=list)  # total energy per frame, frame 0 first
     gravity: list = field(default_factory=list)
-    iterations: int = 0
+    newton_iterations: int = 0
     cg_iterations: int = 0
+    sweeps: int = 0
+    substeps: int = 0
     blew_up: str = ""  # empty when the run stayed finite and bounded
     frames_done: int = 0
 
@@ -54,7 +56,7 @@ def run_in_memory(config, checkpoints=(), *, warmup=True, bound=100.0, initial=N
     metres around the origin.
     """
     from clothtool.sim.model import build_model
-    from clothtool.sim.solvers import make_integrator
+    from clothtool.sim.methods import make_integrator
 
     if not isinstance(config, Config):
         config = load_config(config)
@@ -89,8 +91,10 @@ def run_in_memory(config, checkpoints=(), *, warmup=True, bound=100.0, initial=N
         try:
             for _ in range(config.solver.substeps):
                 report = integ.step(state)
-                run.iterations += report.newton_iterations
+                run.newton_iterations += report.newton_iterations
                 run.cg_iterations += report.cg_iterations
+                run.sweeps += report.sweeps
+                run.substeps += report.substeps
         except Exception as exc:  # a solver that fails numerically counts as a blow-up
             run.blew_up = f"frame {frame}: {type(exc).__name__}: {exc}"
             break

@@ -32,15 +32,18 @@ itself); collisions are the same post-step projection as the implicit solver's.
 
 import numpy as np
 
-from clothtool.sim.solvers.base import SolverBase, StepReport
-from clothtool.sim.solvers.springs import (build_springs, pbd_gauss_seidel, pbd_jacobi,
-                                           spring_energy, strain_limit_pass)
+from clothtool.sim.energy import SpringElastic
+from clothtool.sim.integrator import Integrator, StepReport
+from clothtool.sim.solvers.springs import (pbd_gauss_seidel, pbd_jacobi,
+                                           strain_limit_pass)
 
 
-class PositionBased(SolverBase):
+class PositionBased(Integrator):
+    energy_class = SpringElastic
+
     def __init__(self, model, solver, h):
         super().__init__(model, solver, h)
-        sp = self.springs = build_springs(model)
+        sp = self.springs = model.springs
         k = np.full(len(sp), solver.pbd_stiffness)
         if sp.n_bend:  # bend springs: as much softer than the edges as in the material
             edge_k = sp.k[:len(sp) - sp.n_bend]
@@ -60,10 +63,6 @@ class PositionBased(SolverBase):
         if sp.n_bend:
             self.edge[-sp.n_bend:] = False
 
-    def elastic_energy(self, x):
-        sp = self.springs
-        return spring_energy(x, sp.i, sp.j, sp.rest, sp.k)
-
     def step(self, state):
         sp, solver = self.springs, self.solver
         p = self._inertial_target(state)
@@ -76,4 +75,4 @@ class PositionBased(SolverBase):
             if self.limit is not None:
                 strain_limit_pass(p, sp.i, sp.j, sp.rest, self.edge, self.inv_mass, *self.limit)
         self._finish(state, p)
-        return StepReport(newton_iterations=solver.iterations)
+        return StepReport(sweeps=solver.iterations)

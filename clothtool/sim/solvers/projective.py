@@ -28,14 +28,17 @@ import numpy as np
 import scipy.sparse as sps
 from scipy.sparse.linalg import splu
 
-from clothtool.sim.solvers.base import SolverBase, StepReport
-from clothtool.sim.solvers.springs import build_springs, pd_local_rhs, spring_energy
+from clothtool.sim.energy import SpringElastic
+from clothtool.sim.integrator import Integrator, StepReport
+from clothtool.sim.solvers.springs import pd_local_rhs
 
 
-class ProjectiveDynamics(SolverBase):
+class ProjectiveDynamics(Integrator):
+    energy_class = SpringElastic
+
     def __init__(self, model, solver, h):
         super().__init__(model, solver, h)
-        sp = self.springs = build_springs(model)
+        sp = self.springs = model.springs
         n = model.n_vertices
         rows = np.concatenate([sp.i, sp.j, sp.i, sp.j])
         cols = np.concatenate([sp.i, sp.j, sp.j, sp.i])
@@ -49,10 +52,6 @@ class ProjectiveDynamics(SolverBase):
         self.lu = splu(s_ff)
         self._s_fp = system[self.free_idx][:, model.pinned].tocsr() if model.has_pins else None
         self._rhs = np.zeros((n, 3))
-
-    def elastic_energy(self, x):
-        sp = self.springs
-        return spring_energy(x, sp.i, sp.j, sp.rest, sp.k)
 
     def step(self, state):
         model, h, sp = self.model, self.h, self.springs
@@ -72,4 +71,4 @@ class ProjectiveDynamics(SolverBase):
                 rhs_f -= pin_rhs
             x[free] = self.lu.solve(rhs_f)
         self._finish(state, x)
-        return StepReport(newton_iterations=self.solver.iterations)
+        return StepReport(sweeps=self.solver.iterations)

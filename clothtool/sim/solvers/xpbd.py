@@ -22,22 +22,21 @@ collisions are the post-step projection shared with the other solvers.
 
 import numpy as np
 
-from clothtool.sim.solvers.base import SolverBase, StepReport
-from clothtool.sim.solvers.springs import build_springs, spring_energy, xpbd_sweep
+from clothtool.sim.energy import SpringElastic
+from clothtool.sim.integrator import Integrator, StepReport
+from clothtool.sim.solvers.springs import xpbd_sweep
 
 
-class ExtendedPositionBased(SolverBase):
+class ExtendedPositionBased(Integrator):
+    energy_class = SpringElastic
+
     def __init__(self, model, solver, h):
         super().__init__(model, solver, h)
-        sp = self.springs = build_springs(model)
+        sp = self.springs = model.springs
         self.alpha_tilde = 1.0 / (sp.k * h * h)
         self.gamma = self.alpha_tilde * model.damping * h  # zeros without damping
         self.inv_mass = self._inverse_mass()
         self._lam = np.zeros(len(sp))
-
-    def elastic_energy(self, x):
-        sp = self.springs
-        return spring_energy(x, sp.i, sp.j, sp.rest, sp.k)
 
     def step(self, state):
         sp = self.springs
@@ -49,4 +48,4 @@ class ExtendedPositionBased(SolverBase):
             xpbd_sweep(x, x_n, sp.i, sp.j, sp.rest, self.alpha_tilde, self.gamma, self.inv_mass, lam,
                        it % 2 == 1)
         self._finish(state, x)
-        return StepReport(newton_iterations=self.solver.iterations)
+        return StepReport(sweeps=self.solver.iterations)

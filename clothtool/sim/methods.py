@@ -1,0 +1,85 @@
+"""The registry of simulation methods (``solver.method``): name → class and the config
+features it supports, in one place.
+
+Every method implements the :class:`~clothtool.sim.integrator.Integrator` protocol.
+A method lists the optional features of a config it handles; a config that asks for
+a feature its method does not support is refused with an
+:class:`~clothtool.errors.InputError` naming the config key. Adding a method is one
+:class:`Method` entry here (and its module).
+
+=============  ==================================================================
+method         what it is
+=============  ==================================================================
+implicit       Baraff–Witkin implicit Euler, Newton + filtered PCG (the default;
+               :mod:`clothtool.sim.solvers.implicit`, :mod:`clothtool.sim.newton`)
+mass-spring    implicit Euler on a spring network, PSD-clamped spring Hessians
+pbd            Position Based Dynamics, Gauss–Seidel or Jacobi, strain limiting
+xpbd           extended PBD: compliant constraints, same springs as mass-spring
+projective     Projective Dynamics: constant prefactored matrix, local projections
+explicit       symplectic Euler with (automatic) internal steps, the baseline
+=============  ==================================================================
+
+See ``docs/solvers.md`` for the choice between them.
+"""
+
+import importlib
+from dataclasses import dataclass
+
+from clothtool.errors import InputError
+
+# optional config features a method may support (pins and colliders work with every method:
+# colliders at least project vertices out after each step)
+FRICTION = "friction"  # Coulomb friction on colliders (scene.colliders[i].*.friction > 0)
+FEATURES = (FRICTION,)
+
+
+@dataclass(frozen=True)
+class Method:
+    name: str
+    target: str  # "module:Class"
+    supports: frozenset = frozenset()
+    summary: str = ""
+
+    def load(self):
+        module, cls = self.target.split(":")
+        return getattr(importlib.import_module(module), cls)
+
+
+METHODS = {m.name: m for m in (
+    Method("implicit", "clothtool.sim.solvers.implicit:ImplicitEuler", frozenset({FRICTION}),
+           "Baraff–Witkin implicit Euler, Newton + filtered PCG"),
+    Method("mass-spring", "clothtool.sim.solvers.mass_spring:MassSpringImplicit",
+           summary="implicit Euler on a spring network"),
+    Method("pbd", "clothtool.sim.solvers.pbd:PositionBased", summary="Position Based Dynamics"),
+    Method("xpbd", "clothtool.sim.solvers.xpbd:ExtendedPositionBased", summary="extended PBD"),
+    Method("projective", "clothtool.sim.solvers.projective:ProjectiveDynamics",
+           summary="Projective Dynamics"),
+    Method("explicit", "clothtool.sim.solvers.explicit:SymplecticEuler",
+           summary="symplectic Euler with automatic internal steps"),
+)}
+
+
+def requested_features(config):
+    """(feature, config key) for each optional feature a :class:`~clothtool.sim.config.Config`
+    asks for."""
+    out = []
+    for i, collider in enumerate(config.scene.colliders):
+        if collider.friction > 0:
+            kind = type(collider).__name__.lower()
+            out.append((FRICTION, f"scene.colliders[{i}].{kind}.friction"))
+    return out
+
+
+def check_supported(config):
+    """Raise InputError for the first feature of ``config`` its method does not support."""
+    method = METHODS[config.solver.method]
+    for feature, key in requested_features(config):
+        if feature not in method.supports:
+            raise InputError(f"solver.method: {method.name!r} does not support {key} "
+                             f"(supported by: {', '.join(m.name for m in METHODS.values() if feature in m.supports)})")
+
+
+def make_integrator(model, solver, h):
+    """The integrator of ``solver.method`` (a :class:`~clothtool.sim.config.Solver`) for a model
+    and a step h."""
+    return METHODS[solver.method].load()(model, solver, h)

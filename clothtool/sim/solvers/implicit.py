@@ -1,0 +1,16 @@
+"""``implicit``: Baraff–Witkin implicit Euler on the finite-element cloth (the default).
+
+The incremental potential of :mod:`clothtool.sim.newton` with the finite-element
+energy of :mod:`clothtool.sim.energy` (Kim 2020 membrane, dihedral or quadratic
+bending), collider contacts as constraints of the solve with Coulomb friction, and
+the ``solver.preconditioner`` of the PCG (multigrid by default).
+"""
+
+from clothtool.sim.energy import FemElastic
+from clothtool.sim.newton import NewtonIntegrator
+
+
+class ImplicitEuler(NewtonIntegrator):
+    energy_class = FemElastic
+    contacts = True
+    multigrid = True
