@@ -2,6 +2,7 @@
 
     python -m benchmarks                 # all
     python -m benchmarks analyze sim     # only bench_analyze.py and bench_sim.py
+    python -m benchmarks obj             # OBJ read speed against trimesh and meshio (bench_obj.py)
 """
 
 import importlib

@@ -5,6 +5,7 @@ Library API (the CLI is a thin layer over these)::
     import clothtool
     clothtool.analyze_sequence("frames/", "out.h5")      # per-triangle deformation → HDF5
     mesh = clothtool.read_ply("frame_0001.ply")           # our own PLY reader
+    mesh = clothtool.read_obj("frame_0001.obj")           # and OBJ reader (same mesh type)
     clothtool.simulate("config.yaml")                     # implicit cloth simulation → PLY frames
 
 Heavy modules (numba, h5py) are imported on first use so that ``clothtool --help`` starts fast.
@@ -16,6 +17,8 @@ _LAZY = {
     "analyze_sequence": ("clothtool.analysis.sequence", "analyze_sequence"),
     "read_ply": ("clothtool.io.ply", "read_ply"),
     "write_ply": ("clothtool.io.ply", "write_ply"),
+    "read_obj": ("clothtool.io.obj", "read_obj"),
+    "read_mesh": ("clothtool.io.frames", "read_mesh"),
     "discover_frames": ("clothtool.io.frames", "discover_frames"),
     "simulate": ("clothtool.sim.api", "simulate"),
     "load_config": ("clothtool.sim.config", "load_config"),

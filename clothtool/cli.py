@@ -110,7 +110,8 @@ Examples:
   clothtool analyze 'cap/*.ply' -o out.h5 --reference first --fields stretch,area_ratio
       every frame against the first, only two fields stored
   clothtool analyze sim/ -o out.h5 --reference uv --uv-scale 0.5
-      rest shape from the s,t / u,v texture coordinates (Baraff-Witkin)
+      rest shape from the texture coordinates (Baraff-Witkin): per corner
+      (PLY texcoord, OBJ vt; right on both sides of a uv seam) or per vertex (s,t / u,v)
   clothtool analyze frames/ -o out.h5 --reference rest.ply --dtype float64
   clothtool analyze frames/ -o part1.h5 --pairs 100:200
       only pairs 100..199; join the parts with `clothtool merge`
@@ -135,7 +136,7 @@ Open out.xdmf (written beside out.h5) in ParaView for the deformed mesh over tim
               help="HDF5 file to write (written under a temporary name, renamed when complete).")
 @click.option("--reference", default="previous", show_default=True, metavar="previous|first|uv|PATH",
               help="Rest state of each pair: the previous frame, the first frame, the texture "
-                   "coordinates, or a PLY mesh.")
+                   "coordinates, or a PLY or OBJ mesh.")
 @click.option("--uv-scale", default=1.0, show_default=True, type=float,
               help="Metres per uv unit for --reference uv.")
 @click.option("--fields", default="all", show_default=True, metavar="NAMES",
@@ -155,9 +156,9 @@ Open out.xdmf (written beside out.h5) in ParaView for the deformed mesh over tim
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary.")
 def analyze(inputs, output, reference, uv_scale, fields, dtype, compression, vertex_average,
             pair_slice, kabsch, quiet):
-    """Per-triangle deformation of a PLY sequence, written to HDF5.
+    """Per-triangle deformation of a PLY or OBJ sequence, written to HDF5.
 
-    FRAMES is a folder of .ply files, a glob, or a list of files; they are
+    FRAMES is a folder of .ply or .obj files, a glob, or a list of files; they are
     taken in natural order (f2.ply before f10.ply) and analysed in pairs. For
     each triangle: the deformation gradient F in the triangle's tangent frame,
     C = FᵀF, the polar split F = R·U, principal stretches and directions, the
@@ -249,6 +250,7 @@ Examples:
   clothtool analyze frames/ -o part0.h5 --pairs 0:500      # on one machine
   clothtool analyze frames/ -o part1.h5 --pairs 500:1000   # on another
   clothtool merge part*.h5 -o all.h5                       # equal to one run over 0:1000
+  clothtool merge part0.h5 -o first.h5 --allow-partial     # only pairs 0:500
 
 """ + EXIT_CODES_HELP
 
@@ -257,15 +259,19 @@ Examples:
 @click.argument("parts", nargs=-1, required=True, type=click.Path(dir_okay=False))
 @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False),
               help="HDF5 file to write (an XDMF is written beside it).")
-def merge(parts, output):
+@click.option("--allow-partial", is_flag=True,
+              help="Accept parts that cover only some of the analysis' pairs (still consecutive).")
+def merge(parts, output, allow_partial):
     """Join results computed in slices (analyze --pairs) into one result.
 
     PARTS are slices of the same analysis, in any order; together they must cover
-    consecutive pairs without gap or overlap.
+    every pair of the analysis, consecutively, without gap or overlap (with
+    --allow-partial: consecutive pairs only).
     """
     from clothtool.results.merge import merge_results
 
-    offset, n = merge_results(list(parts), output, command=" ".join(["clothtool", *sys.argv[1:]]))
+    offset, n = merge_results(list(parts), output, command=" ".join(["clothtool", *sys.argv[1:]]),
+                              allow_partial=allow_partial)
     click.echo(f"wrote {output}: pairs {offset}:{offset + n} from {len(parts)} parts")
 
 

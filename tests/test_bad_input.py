@@ -17,6 +17,7 @@ from conftest import grid
 
 from clothtool.cli import main
 from clothtool.errors import InputError
+from clothtool.io.frames import read_mesh
 from clothtool.io.ply import read_ply, write_ply
 
 VERTICES, FACES = grid(4, 3)  # 12 vertices, 12 triangles
@@ -281,7 +282,7 @@ def empty_folder(tmp):
 def folder_without_ply_files(tmp):
     (tmp / "seq").mkdir()
     (tmp / "seq" / "notes.txt").write_text("frames to come")
-    return Case([str(tmp / "seq")], "no .ply files")
+    return Case([str(tmp / "seq")], "no .ply or .obj files")
 
 
 @case
@@ -447,6 +448,106 @@ def sidecar_fails_after_the_hdf5_is_complete(tmp):
                 patch={"clothtool.analysis.sequence.xdmf_text": bug})
 
 
+# ------------------------------------------------------------------ broken OBJ files
+
+GOOD_OBJ = b"v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\n"
+
+
+def broken_obj(tmp, data, line, options=()):
+    """An OBJ sequence of two frames whose second is ``data``; the message must name ``line``."""
+    folder = tmp / "seq"
+    folder.mkdir()
+    (folder / "frame_0.obj").write_bytes(GOOD_OBJ + b"f 1/1 2/2 3/3\nf 1/1 3/3 4/4\n")
+    (folder / "frame_1.obj").write_bytes(data)
+    return Case([str(folder)], f"frame_1.obj: line {line}:", list(options),
+                broken_file=folder / "frame_1.obj")
+
+
+@case
+def obj_index_out_of_range(tmp):
+    return broken_obj(tmp, GOOD_OBJ + b"f 1 2 3\nf 1 3 5\n", 10)
+
+
+@case
+def obj_negative_index_out_of_range(tmp):
+    return broken_obj(tmp, GOOD_OBJ + b"f 1 2 3\nf -1 -2 -5\n", 10)
+
+
+@case
+def obj_index_zero(tmp):
+    return broken_obj(tmp, GOOD_OBJ + b"f 0 1 2\n", 9)
+
+
+@case
+def obj_texture_index_out_of_range(tmp):
+    return broken_obj(tmp, GOOD_OBJ + b"f 1/1 2/2 3/9\n", 9)
+
+
+@case
+def obj_face_with_two_corners(tmp):
+    return broken_obj(tmp, GOOD_OBJ + b"f 1 2 3\nf 1 2\n", 10)
+
+
+@case
+def obj_bad_corner(tmp):
+    return broken_obj(tmp, GOOD_OBJ + b"f 1/1/1/1 2 3\n", 9)
+
+
+@case
+def obj_non_integer_index(tmp):
+    return broken_obj(tmp, GOOD_OBJ + b"f 1 2.5 3\n", 9)
+
+
+@case
+def obj_vertex_with_two_coordinates(tmp):
+    return broken_obj(tmp, GOOD_OBJ.replace(b"v 1 1 0", b"v 1 1") + b"f 1 2 3\n", 3)
+
+
+@case
+def obj_non_numeric_coordinate(tmp):
+    return broken_obj(tmp, GOOD_OBJ.replace(b"v 1 1 0", b"v 1 one 0") + b"f 1 2 3\n", 3)
+
+
+@case
+def obj_unknown_statement(tmp):
+    return broken_obj(tmp, GOOD_OBJ + b"f 1 2 3\nbogus 1 2\n", 10)
+
+
+@case
+def obj_uv_missing_on_some_corners(tmp):
+    """A seam mesh whose second face lost its vt: fine for other references, not for uv."""
+    folder = tmp / "seq"
+    folder.mkdir()
+    (folder / "frame_0.obj").write_bytes(GOOD_OBJ + b"f 1/1 2/2 3/3\nf 1/1 3 4/4\n")
+    return Case([str(folder)], "frame_0.obj: line 10:", ["--reference", "uv"], also="uv on every corner")
+
+
+@case
+def ply_texcoord_missing_on_some_faces(tmp):
+    folder = tmp / "seq"
+    folder.mkdir()
+    data = (b"ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\n"
+            b"property float z\nelement face 2\nproperty list uchar int vertex_indices\n"
+            b"property list uchar float texcoord\nend_header\n0 0 0\n1 0 0\n1 1 0\n0 1 0\n"
+            b"3 0 1 2 6 0 0 1 0 1 1\n3 0 2 3 0\n")
+    (folder / "frame_0.ply").write_bytes(data)
+    return Case([str(folder)], "frame_0.ply: face 1:", ["--reference", "uv"], also="uv on every corner")
+
+
+@case
+def mixed_ply_and_obj_in_a_folder(tmp):
+    folder = sequence(tmp)
+    (folder / "frame_9.obj").write_bytes(GOOD_OBJ + b"f 1 2 3\n")
+    return Case([str(folder)], "both .ply and .obj", also=str(folder))
+
+
+@case
+def broken_obj_reference(tmp):
+    folder = sequence(tmp)
+    (tmp / "rest.obj").write_bytes(b"v 0 0 0\nf 1 2 3\n")
+    return Case([str(folder)], "rest.obj: line 2:", ["--reference", str(tmp / "rest.obj")])
+
+
 # ------------------------------------------------------------------ the checks
 
 
@@ -505,14 +606,14 @@ def test_corpus_is_large_enough():
 
 
 def test_broken_files_raise_input_error_from_the_library(tmp_path):
-    """The same files through ``read_ply`` give InputError naming the file, nothing else."""
+    """The same files through ``read_mesh`` give InputError naming the file, nothing else."""
     count = 0
     for name, builder in CASES.items():
         (tmp_path / name).mkdir()
         c = builder(tmp_path / name)
         if c.broken_file is not None:
             with pytest.raises(InputError, match=c.broken_file.name):
-                read_ply(c.broken_file)
+                read_mesh(c.broken_file)
             count += 1
     assert count >= 25
 

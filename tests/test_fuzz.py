@@ -1,5 +1,5 @@
-"""Fuzzing the PLY reader with hypothesis: random bytes, and valid files (ascii and
-binary) mutated in their header and body. Every outcome is a consistent PlyMesh or an
+"""Fuzzing the PLY and OBJ readers with hypothesis: random bytes, and valid files (ascii and
+binary; OBJ of every corner form) mutated in their header and body. Every outcome is a consistent PlyMesh or an
 InputError naming the file, never another exception, a hang or a large allocation."""
 
 import contextlib
@@ -15,6 +15,7 @@ from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
 from clothtool.errors import InputError
+from clothtool.io.obj import parse_obj
 from clothtool.io.ply import PlyMesh, parse_ply, write_ply
 
 # CLOTHTOOL_FUZZ_EXAMPLES=20000 pytest tests/test_fuzz.py  for a longer hunt
@@ -213,6 +214,134 @@ def test_huge_declared_counts_allocate_nothing(seed_files, fmt, element, count):
     stop = seed.index(b"\n", start)
     data = seed[:start] + f"element {element} {count}".encode() + seed[stop:]
     assert outcome(data) is None  # and the peak allocation check inside outcome()
+
+
+# ---------------------------------------------------------------------------- OBJ
+
+OBJ_NAME = "fuzzed.obj"
+
+
+def obj_seeds():
+    """Valid OBJ files: every corner form, negative indices, polygons, mixed forms, extras."""
+    vertices, faces = grid(4, 3)
+    v = "".join(f"v {x!r} {y!r} {z!r}\n" for x, y, z in vertices.tolist())
+    vt = "".join(f"vt {x!r} {y!r}\n" for x, y, _ in vertices.tolist())
+    tri = faces + 1
+    out = {
+        "plain": v + "".join("f %d %d %d\n" % tuple(f) for f in tri),
+        "vt": v + vt + "".join("f %d/%d %d/%d %d/%d\n" % (a, a, b, b, c, c) for a, b, c in tri),
+        "vn": v + "vn 0 0 1\n" + "".join("f %d//1 %d//1 %d//1\n" % tuple(f) for f in tri),
+        "vtn": v + vt + "vn 0 0 1\n" + "".join("f %d/%d/1 %d/%d/1 %d/%d/1\n" % (a, a, b, b, c, c)
+                                              for a, b, c in tri),
+        "negative": v + "".join("f %d %d %d\n" % tuple(f - 13) for f in tri),
+        "quads_mixed": "# c\no x\n" + v + vt + "g a\ns 1\nusemtl m\nf 1/1 2/2 6/6 5/5\n"
+                       "f 2 3 7 6\nf 3/3 4/4 8/8\nf 3 8 7 # comment\n  f 5 6 7 11 10\n",
+        "w_colours": "".join(f"v {x!r} {y!r} {z!r} 1.0 0.5 0.5 0.5\n" for x, y, z in vertices.tolist())
+                     + "".join("f %d %d %d\r\n" % tuple(f) for f in tri),
+    }
+    return {k: t.encode() for k, t in out.items()}
+
+
+@pytest.fixture(scope="module")
+def obj_files():
+    files = obj_seeds()
+    for data in files.values():
+        assert isinstance(parse_obj(data, OBJ_NAME), PlyMesh)
+    return files
+
+
+def obj_outcome(data):
+    """parse_obj's result or None for a one-line InputError naming the file."""
+    tracemalloc.start()
+    try:
+        with no_hang():
+            mesh = parse_obj(data, OBJ_NAME)
+    except InputError as exc:
+        assert OBJ_NAME in str(exc) and "\n" not in str(exc)
+        return None
+    finally:
+        _, peak = tracemalloc.get_traced_memory()
+        tracemalloc.stop()
+        assert peak < (8 << 20) + 400 * len(data), f"peak allocation {peak} bytes"
+    n = len(mesh.vertices)
+    assert mesh.vertices.shape == (n, 3) and mesh.vertices.dtype == np.float64
+    assert mesh.faces.ndim == 2 and mesh.faces.shape[1] == 3 and mesh.faces.dtype == np.int64
+    assert mesh.face_source.shape == (len(mesh.faces),)
+    if mesh.faces.size:
+        assert 0 <= mesh.faces.min() and mesh.faces.max() < n
+    if mesh.corner_uv is not None:
+        assert mesh.corner_uv.shape == (len(mesh.faces), 3, 2)
+        assert mesh.corner_uv_missing.shape == (len(mesh.faces),)
+    return mesh
+
+
+OBJ_BYTES = list(b"vtnf/-# \n\r\t0123456789.e+") + [0, 0xFF, 0xC3]
+OBJ_TOKENS = ["0", "-1", "-99", "1", "3", "99999999999999999999", "1/1", "1//1", "1/1/1", "1/",
+              "/1", "1//", "1///1", "1/-1", "--1", "1-2", "1.5", "nan", "inf", "1e308", "v", "vt",
+              "vn", "f", "o", "#", "usemtl", "", "\u00e9", "\\"]
+
+
+@FUZZ
+@given(st.data())
+def test_obj_mutated_bytes(obj_files, data):
+    name = data.draw(st.sampled_from(sorted(obj_files)))
+    text = bytearray(obj_files[name])
+    for _ in range(data.draw(st.integers(1, 8))):
+        at = data.draw(st.integers(0, len(text) - 1))
+        kind = data.draw(st.sampled_from(["overwrite", "insert", "delete"]))
+        byte = data.draw(st.sampled_from(OBJ_BYTES) | st.integers(0, 255))
+        if kind == "overwrite":
+            text[at] = byte
+        elif kind == "insert":
+            text.insert(at, byte)
+        else:
+            del text[at:at + data.draw(st.integers(1, 4))]
+    if data.draw(st.integers(0, 3)) == 0:
+        text = text[:data.draw(st.integers(0, len(text)))]
+    obj_outcome(bytes(text))
+
+
+@FUZZ
+@given(st.data())
+def test_obj_retokened(obj_files, data):
+    name = data.draw(st.sampled_from(sorted(obj_files)))
+    words = obj_files[name].decode().split(" ")
+    for _ in range(data.draw(st.integers(1, 3))):
+        i = data.draw(st.integers(0, len(words) - 1))
+        lines = words[i].split("\n")
+        j = data.draw(st.integers(0, len(lines) - 1))
+        lines[j] = data.draw(st.sampled_from(OBJ_TOKENS))
+        words[i] = "\n".join(lines)
+    obj_outcome(" ".join(words).encode("utf-8"))
+
+
+@FUZZ
+@given(st.binary(max_size=4096))
+def test_obj_random_bytes(data):
+    obj_outcome(data)
+
+
+def test_obj_fast_path_never_misreads(obj_files):
+    """Per-corner words the vectorised face parser must not take apart wrongly: whatever the
+    fast path accepts, the per-line path reads the same."""
+    from clothtool.io import obj
+
+    base = b"v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nvn 0 0 1\n"
+    for face in [b"f 1/1/1/1 2 3", b"f 1//1 2/1 3/1/1", b"f 1/2 3 4/4/1", b"f 1-2 3 4",
+                 b"f 1/1 2/2 3/3\nf 1 2//1 3/3/1", b"f 1 2 3 4\nf 1 2 3", b"f 1/-1 2/-2 3/-3"]:
+        data = base + face + b"\n"
+        try:
+            fast = parse_obj(data, OBJ_NAME)
+        except InputError:
+            fast = None
+        try:
+            slow = obj._finish(obj._parse_per_line(data, OBJ_NAME), OBJ_NAME)
+        except InputError:
+            slow = None
+        assert (fast is None) == (slow is None), face
+        if fast is not None:
+            np.testing.assert_array_equal(fast.faces, slow.faces)
+            np.testing.assert_array_equal(fast.corner_uv, slow.corner_uv)
 
 
 # ---------------------------------------------------------------------------- configs

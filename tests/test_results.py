@@ -334,7 +334,7 @@ def test_merge_of_slices_equals_single_run(sheet, reference):
     times, _, _ = read_xdmf(tmp / "merged.xdmf")
     assert len(times) == n_pairs
     # merging in stages gives the same
-    merge_results([tmp / "part1.h5", tmp / "part0.h5"], tmp / "m01.h5")
+    merge_results([tmp / "part1.h5", tmp / "part0.h5"], tmp / "m01.h5", allow_partial=True)
     merge_results([tmp / "m01.h5", tmp / "part2.h5"], tmp / "staged.h5")
     assert_same_result(tmp / "all.h5", tmp / "staged.h5")
     with h5py.File(tmp / "staged.h5") as f:
@@ -356,6 +356,34 @@ def test_merge_rejects_gaps_overlaps_and_strangers(sheet):
                                       "-o", str(tmp / "m.h5")])
         assert result.exit_code == 2 and message in result.output, result.output
         assert not (tmp / "m.h5").exists() and not (tmp / "m.xdmf").exists()
+
+
+def test_merge_refuses_a_missing_last_or_first_part_unless_allow_partial(sheet):
+    """A Slurm array whose last task failed: the parts cover 0:3 of the 5 pairs."""
+    tmp, xs, faces = sheet
+    n_pairs = FRAMES - 1
+    for k, cut in enumerate(["0:2", "2:3", f"3:{n_pairs}"]):
+        clothtool.analyze_sequence(tmp / "seq", tmp / f"p{k}.h5", pairs=cut)
+    runner = CliRunner()
+    for parts, message in [("01", f"pairs 3:{n_pairs} of the analysis' {n_pairs} are in no part"),
+                           ("12", f"pairs 0:2 of the analysis' {n_pairs}"),
+                           ("1", f"pairs 0:2 and 3:{n_pairs} of the analysis' {n_pairs}")]:
+        result = runner.invoke(main, ["merge", *(str(tmp / f"p{p}.h5") for p in parts),
+                                      "-o", str(tmp / "m.h5")])
+        assert result.exit_code == 2 and message in result.stderr, result.output
+        assert result.stderr.count("\n") == 1 and "--allow-partial" in result.stderr
+        assert not (tmp / "m.h5").exists() and not (tmp / "m.xdmf").exists()
+        with pytest.raises(InputError, match="are in no part"):
+            merge_results([tmp / f"p{p}.h5" for p in parts], tmp / "m.h5")
+    result = runner.invoke(main, ["merge", str(tmp / "p1.h5"), str(tmp / "p0.h5"), "-o",
+                                  str(tmp / "m.h5"), "--allow-partial"])
+    assert result.exit_code == 0, result.output
+    assert "pairs 0:3 from 2 parts" in result.output
+    with h5py.File(tmp / "m.h5") as f:
+        assert len(f["pairs"]) == 3 and f.attrs["pairs_total"] == n_pairs
+        assert f.attrs["pair_offset"] == 0
+    assert merge_results([tmp / "p2.h5", tmp / "p1.h5"], tmp / "m12.h5", allow_partial=True) == (2, n_pairs - 2)
+    assert merge_results([tmp / f"p{k}.h5" for k in range(3)], tmp / "all.h5") == (0, n_pairs)
 
 
 def test_pairs_option_errors(sheet):

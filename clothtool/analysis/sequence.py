@@ -108,23 +108,21 @@ class _Rest:
         self._key, self._data = None, None
         self.external = None
         if reference == "uv":
-            uv = reader.first.uv
-            if uv is None:
-                raise InputError(f"{reader.paths[0]}: --reference uv needs texture coordinates "
-                                 "(vertex properties 's t' or 'u v'), and the file has none")
-            self.external = ("uv", uv)
+            from clothtool.io.uv import rest_uv
+
+            self.external = ("uv", rest_uv(reader.first, reader.paths[0]))  # per corner or vertex
         elif reference not in REFERENCE_MODES:
             if not os.path.isfile(reference):
                 raise InputError(f"--reference: {reference!r} is not previous, first, uv "
-                                 "or an existing PLY file")
-            from clothtool.io.ply import read_ply
+                                 "or an existing PLY or OBJ file")
+            from clothtool.io.frames import read_mesh
 
-            mesh = reader.check_same_topology(read_ply(reference, reuse=reader.first), reference)
+            mesh = reader.check_same_topology(read_mesh(reference, reuse=reader.first), reference)
             self.external = ("mesh", mesh.vertices)
 
     def uv_positions(self):
         """The uv rest shape as (N, 3) positions (u, v, 0)·uv_scale, for the 3D variant."""
-        uv = self.external[1] * float(self.uv_scale)
+        uv = self.external[1].vertex_uv() * float(self.uv_scale)
         return np.ascontiguousarray(np.column_stack([uv, np.zeros(len(uv))]), dtype=np.float64)
 
     def vertices(self):
@@ -141,7 +139,8 @@ class _Rest:
         """(D_r⁻¹, basis, flags) of reference ``index`` whose positions are ``positions``."""
         if self._key != index:
             if self.external is not None and self.external[0] == "uv":
-                self._data = reference_from_uv(self.external[1], self.faces, float(self.uv_scale),
+                uv = self.external[1]
+                self._data = reference_from_uv(uv.points, uv.faces, float(self.uv_scale),
                                                DEGENERATE_TOL)
             else:
                 self._data = reference_from_positions(positions, self.faces, DEGENERATE_TOL)
@@ -295,7 +294,7 @@ def _write_header(h5, paths, pairs, rest, reader, reference, uv_scale, command, 
     mesh.create_dataset("face_source", data=reader.first.face_source)
     mesh.create_dataset("vertices", data=rest.vertices())
     if reference == "uv":
-        mesh.create_dataset("uv", data=rest.external[1])
+        mesh.create_dataset(rest.external[1].name, data=rest.external[1].data)
     h5.create_dataset("frames", data=np.array(paths, dtype=object), dtype=h5py.string_dtype())
     h5.create_dataset("pairs", data=pairs)
 

@@ -1,4 +1,7 @@
-"""Finding the frames of a sequence: a folder, a glob, or a list of files, in natural order."""
+"""Finding the frames of a sequence: a folder, a glob, or a list of files, in natural order.
+
+A sequence is in one format, known from the extension: ``.obj`` files are read as Wavefront
+OBJ (:mod:`clothtool.io.obj`), anything else as PLY (:mod:`clothtool.io.ply`)."""
 
 import glob
 import os
@@ -9,6 +12,23 @@ import numpy as np
 from clothtool.errors import InputError
 
 _DIGITS = re.compile(r"(\d+)")
+MESH_EXTENSIONS = (".ply", ".obj")
+
+
+def mesh_format(path):
+    """'obj' for a ``.obj`` file (any case), else 'ply'."""
+    return "obj" if os.fspath(path).lower().endswith(".obj") else "ply"
+
+
+def read_mesh(path, *, reuse=None):
+    """Read a PLY or OBJ file (by extension) into a :class:`~clothtool.io.ply.PlyMesh`."""
+    if mesh_format(path) == "obj":
+        from clothtool.io.obj import read_obj
+
+        return read_obj(path, reuse=reuse)
+    from clothtool.io.ply import read_ply
+
+    return read_ply(path, reuse=reuse)
 
 
 def natural_key(path):
@@ -18,10 +38,11 @@ def natural_key(path):
 
 
 def discover_frames(inputs):
-    """Resolve ``inputs`` (a path, a glob or a list of them) to an ordered list of PLY files.
+    """Resolve ``inputs`` (a path, a glob or a list of them) to an ordered list of mesh files.
 
-    A folder contributes its ``*.ply`` files (case-insensitive), a glob its matches; each
-    folder or glob is sorted naturally, explicit files keep the order given.
+    A folder contributes its ``*.ply`` or ``*.obj`` files (case-insensitive; not both), a glob
+    its matches; each folder or glob is sorted naturally, explicit files keep the order given.
+    All frames must be in one format.
     """
     if isinstance(inputs, (str, os.PathLike)):
         inputs = [inputs]
@@ -29,9 +50,10 @@ def discover_frames(inputs):
     for item in map(os.fspath, inputs):
         if os.path.isdir(item):
             found = [os.path.join(item, f) for f in os.listdir(item)
-                     if f.lower().endswith(".ply") and os.path.isfile(os.path.join(item, f))]
+                     if f.lower().endswith(MESH_EXTENSIONS) and os.path.isfile(os.path.join(item, f))]
             if not found:
-                raise InputError(f"{item}: folder contains no .ply files")
+                raise InputError(f"{item}: folder contains no .ply or .obj files")
+            _one_format(found, f"{item}: folder holds")
             frames.extend(sorted(found, key=natural_key))
         elif os.path.isfile(item):
             frames.append(item)
@@ -44,7 +66,17 @@ def discover_frames(inputs):
             raise InputError(f"{item}: not a regular file or folder")
         else:
             raise InputError(f"{item}: no such file or folder")
+    _one_format(frames, "the frames are")
     return frames
+
+
+def _one_format(paths, what):
+    formats = {}
+    for p in paths:
+        formats.setdefault(mesh_format(p), p)
+    if len(formats) > 1:
+        raise InputError(f"{what} both .ply and .obj files ({os.path.basename(formats['ply'])}, "
+                         f"{os.path.basename(formats['obj'])}); a sequence is in one format")
 
 
 class FrameReader:
@@ -55,11 +87,8 @@ class FrameReader:
     """
 
     def __init__(self, paths):
-        from clothtool.io.ply import read_ply
-
-        self._read_ply = read_ply
         self.paths = list(paths)
-        self.first = read_ply(self.paths[0])
+        self.first = read_mesh(self.paths[0])
         if len(self.first.faces) == 0:
             raise InputError(f"{self.paths[0]}: mesh has no faces")
 
@@ -72,10 +101,10 @@ class FrameReader:
         return len(self.first.vertices)
 
     def mesh(self, i):
-        """The :class:`~clothtool.io.ply.PlyMesh` of frame ``i``, checked against frame 0."""
+        """The mesh (:class:`~clothtool.io.ply.PlyMesh`) of frame ``i``, checked against frame 0."""
         if i == 0:
             return self.first
-        return self.check_same_topology(self._read_ply(self.paths[i], reuse=self.first),
+        return self.check_same_topology(read_mesh(self.paths[i], reuse=self.first),
                                         self.paths[i])
 
     def positions(self, i):

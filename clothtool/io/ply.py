@@ -35,6 +35,7 @@ _TYPE_NAMES = {"i1": "char", "u1": "uchar", "i2": "short", "u2": "ushort", "i4":
 _FORMATS = {"ascii": None, "binary_little_endian": "<", "binary_big_endian": ">"}
 UV_NAMES = (("s", "t"), ("u", "v"), ("texture_u", "texture_v"), ("texture_s", "texture_t"))
 FACE_LIST_NAMES = ("vertex_indices", "vertex_index")
+CORNER_UV_NAMES = ("texcoord",)  # face list of u v per corner, as MeshLab writes it
 MAX_HEADER_BYTES = 1 << 20
 _PROBE_BYTES = 4096  # read first, so that a large file that is not a PLY is not read whole
 REUSED = object()  # marks a face block taken from ``reuse`` without parsing
@@ -87,10 +88,12 @@ class PlyHeader:
 
 @dataclass
 class PlyMesh:
-    """A triangle mesh as read from a PLY file.
+    """A triangle mesh as read from a PLY (or OBJ) file.
 
     ``faces`` are triangles (polygons fan-triangulated), ``face_source[k]`` is the
-    index of the file's polygon that triangle k came from.
+    index of the file's polygon that triangle k came from. ``corner_uv[k, j]`` is the
+    texture position of corner j of triangle k (PLY face ``texcoord``, OBJ ``vt``): on a
+    uv seam one vertex has two.
     """
 
     vertices: np.ndarray  # (N, 3) float64
@@ -99,6 +102,9 @@ class PlyMesh:
     vertex_properties: dict = field(default_factory=dict)
     header: PlyHeader | None = None
     face_block: bytes = b""  # raw bytes of the face element, for reuse checks
+    corner_uv: np.ndarray | None = None  # (M, 3, 2) per-corner texture coordinates, or None
+    corner_uv_missing: np.ndarray | None = None  # (M,) bool: triangles without corner uv
+    source_lines: np.ndarray | None = None  # (F,) file line of each source face (OBJ only)
 
     @property
     def uv(self):
@@ -232,12 +238,69 @@ def parse_ply(data, path="<bytes>", *, reuse=None):
     props = {n: vertex[n] for n in names if n not in ("x", "y", "z")}
     if face_rows is REUSED:
         faces, source = reuse.faces, reuse.face_source
+        corner_uv, missing = reuse.corner_uv, reuse.corner_uv_missing
         if len(vertices) < len(reuse.vertices) and len(faces) and faces.max() >= len(vertices):
             i = int(source[np.argmax((faces >= len(vertices)).any(axis=1))])
             raise InputError(f"{path}: face {i} has a vertex index outside 0..{len(vertices) - 1}")
     else:
-        faces, source = _triangulate(face_rows, len(vertices), path)
-    return PlyMesh(vertices, faces, source, props, header, face_block)
+        rows, texcoord = face_rows if face_rows is not None else (None, None)
+        faces, source = _triangulate(rows, len(vertices), path)
+        corner_uv, missing = _corner_uv(rows, texcoord, path)
+    return PlyMesh(vertices, faces, source, props, header, face_block, corner_uv, missing)
+
+
+def _texcoord(table):
+    for name in CORNER_UV_NAMES:
+        if name in table:
+            return table[name]
+    return None
+
+
+def _corner_uv(rows, texcoord, path):
+    """Per-corner uv (M, 3, 2) of the triangles from a face ``texcoord`` list (u v per corner),
+    and which triangles have none (an empty list; NaN there). (None, None) without texcoord."""
+    if texcoord is None or rows is None or len(rows) == 0:
+        return None, None
+    lengths = np.array([len(r) for r in rows], np.int64) if not isinstance(rows, np.ndarray) \
+        else np.full(len(rows), rows.shape[1], np.int64)
+    if isinstance(texcoord, np.ndarray) and texcoord.ndim == 2:
+        sizes = np.full(len(texcoord), texcoord.shape[1], np.int64)
+    else:
+        sizes = np.array([len(t) for t in texcoord], np.int64)
+    bad = (sizes != 2 * lengths) & (sizes != 0)
+    if bad.any():
+        i = int(np.argmax(bad))
+        raise InputError(f"{path}: face {i} has {sizes[i]} texcoord values for {lengths[i]} "
+                         f"corners, expected {2 * lengths[i]} (u v per corner)")
+    flat = np.full((int(lengths.sum()), 2), np.nan)
+    has = sizes > 0
+    if isinstance(texcoord, np.ndarray) and texcoord.ndim == 2:
+        if has.all():
+            flat = texcoord.reshape(-1, 2).astype(np.float64)
+    elif has.any():
+        starts = np.cumsum(lengths) - lengths
+        values = np.concatenate([np.asarray(t, np.float64) for t, h in zip(texcoord, has) if h])
+        at = np.concatenate([np.arange(s, s + n) for s, n, h in zip(starts, lengths, has) if h])
+        flat[at] = values.reshape(-1, 2)
+    corners, source = fan(lengths)
+    return flat[corners], ~has[source]
+
+
+def fan(lengths):
+    """Fan triangulation of polygons with ``lengths`` corners (each ≥ 3), corners numbered
+    consecutively: (corner ids (M, 3) int64, source polygon (M,) int64)."""
+    lengths = np.asarray(lengths, np.int64)
+    per_face = lengths - 2
+    source = np.repeat(np.arange(len(lengths), dtype=np.int64), per_face)
+    if len(lengths) and (lengths == lengths[0]).all():
+        k = int(lengths[0])
+        pattern = np.stack([np.zeros(k - 2, np.int64), np.arange(1, k - 1), np.arange(2, k)], 1)
+        ids = (np.arange(len(lengths))[:, None, None] * k + pattern).reshape(-1, 3)
+        return ids, source
+    starts = np.cumsum(lengths) - lengths
+    first = np.repeat(starts, per_face)
+    j = np.arange(len(source)) - np.repeat(np.cumsum(per_face) - per_face, per_face) + 1
+    return np.stack([first, first + j, first + j + 1], axis=1), source
 
 
 def _positions(vertex):
@@ -292,7 +355,7 @@ def _read_binary(data, header, path, reuse):
         table, offset = _read_binary_lists(data, el, order, offset, path)
         if el.name == "face":
             face_block = data[start:offset]
-            face_rows = table[_face_property(el, path).name]
+            face_rows = (table[_face_property(el, path).name], _texcoord(table))
     if offset != len(data):
         raise InputError(f"{path}: {len(data) - offset} unexpected bytes after the last element")
     return records, face_rows, face_block
@@ -417,7 +480,7 @@ def _read_ascii(data, header, path, reuse):
         if el.has_lists():
             table = _ascii_list_records(chunk, el, path, first_line)
             if el.name == "face":
-                face_rows = table[_face_property(el, path).name]
+                face_rows = (table[_face_property(el, path).name], _texcoord(table))
         else:
             records[el.name] = _ascii_scalar_records(chunk, el, path, first_line)
     return records, face_rows, face_block

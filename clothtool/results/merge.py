@@ -6,7 +6,9 @@ Per-pair datasets are ``/pairs`` and, in the groups ``face``, ``vertex``, ``edge
 pair order. ``/frame_vertices`` takes each frame from a part that read it. Everything else
 (``/mesh``, ``/frames``, …) must be equal in all parts and is copied once. Parts may be given
 in any order but must be slices of the same analysis (same frames, mesh, reference, fields,
-dtype and clothtool version) that follow each other without gap or overlap.
+dtype and clothtool version) that follow each other without gap or overlap, and together cover
+every pair of the analysis (``pair_offset`` 0 to the ``pairs_total`` attribute) unless
+``allow_partial``: a Slurm array whose last task failed must not pass for a complete result.
 
 Root attributes: those of the parts (equal in all), ``pair_offset`` of the first part,
 ``command`` = the merge command, ``created`` = now, ``merged_commands`` = the parts' commands
@@ -20,6 +22,7 @@ import numpy as np
 
 from clothtool.errors import InputError
 from clothtool.results.info import open_result
+from clothtool.results.xdmf import VIEWS
 
 PAIR_GROUPS = ("face", "vertex", "edge", "summary")
 VARYING_ATTRS = ("command", "created", "pair_offset", "merged_commands")  # differ between parts
@@ -34,8 +37,10 @@ def _is_per_pair(h5, name):
 
 
 def _datasets(h5):
+    """Names of the stored datasets (not the XDMF's views, which are made anew)."""
     names = []
-    h5.visititems(lambda name, obj: names.append(name) if hasattr(obj, "shape") else None)
+    h5.visititems(lambda name, obj: names.append(name) if hasattr(obj, "shape")
+                  and name.split("/")[0] != VIEWS else None)
     return names
 
 
@@ -43,9 +48,9 @@ def _text(value):
     return value.decode() if isinstance(value, bytes) else value
 
 
-def _check_parts(parts):
+def _check_parts(parts, allow_partial=False):
     """Sort the open parts by pair offset and check that they are consecutive slices of one
-    analysis. Returns them sorted."""
+    analysis that cover all its pairs (or, with ``allow_partial``, some). Returns them sorted."""
     def span(h5):
         start = int(h5.attrs.get("pair_offset", 0))
         return start, start + len(h5["pairs"])
@@ -81,6 +86,13 @@ def _check_parts(parts):
         if b0 > a1:
             raise InputError(f"pairs {a1}:{b0} are missing between {a.filename} (pairs {a0}:{a1}) "
                              f"and {b.filename} (pairs {b0}:{b1})")
+    total = first.attrs.get("pairs_total")
+    start, stop = span(parts[0])[0], span(parts[-1])[1]
+    if not allow_partial and total is not None and (start, stop) != (0, int(total)):
+        missing = [f"{a}:{b}" for a, b in ((0, start), (stop, int(total))) if b > a]
+        raise InputError(f"pairs {' and '.join(missing)} of the analysis' {int(total)} are in no "
+                         f"part ({len(parts)} parts cover {start}:{stop}); a failed or missing "
+                         "slice? --allow-partial merges them anyway")
     return parts
 
 
@@ -104,9 +116,10 @@ def _copy_rows(src, dst, at):
         dst[at + i:at + i + len(block)] = block
 
 
-def merge_results(paths, output, *, command=None):
+def merge_results(paths, output, *, command=None, allow_partial=False):
     """Join the slice results ``paths`` into ``output`` (atomic HDF5, plus its XDMF).
-    Returns (pair_offset, number of pairs) of the merged result."""
+    ``allow_partial``: accept parts that cover only some of the analysis' pairs (still
+    consecutive). Returns (pair_offset, number of pairs) of the merged result."""
     from clothtool.io.h5 import AtomicH5, check_output_path
     from clothtool.results.xdmf import xdmf_path, xdmf_text
 
@@ -119,7 +132,7 @@ def merge_results(paths, output, *, command=None):
             raise InputError(f"{output}: the output is also one of the inputs")
     parts = [open_result(p) for p in paths]
     try:
-        parts = _check_parts(parts)
+        parts = _check_parts(parts, allow_partial)
         first = parts[0]
         offset = int(first.attrs.get("pair_offset", 0))
         total = sum(len(h5["pairs"]) for h5 in parts)
