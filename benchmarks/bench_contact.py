@@ -63,20 +63,21 @@ def ours(x, dx, faces):
     zero = np.zeros_like(x)
 
     def collision_set():
-        return contact_stencils(x, zero, faces, edges, obstacle, True, DHAT)
+        return contact_stencils(x, zero, np.zeros(len(x)), faces, edges, obstacle, True, DHAT)
 
     stencils, n_pt = collision_set()
     k = len(stencils)
     grad = np.zeros_like(x)
     act, w, nrm, coef = np.zeros(k, np.int64), np.zeros((k, 4)), np.zeros((k, 3)), np.zeros(k)
+    force = np.zeros(k)
 
     def derivatives():
         grad[:] = 0.0
         return contact_assemble(x, stencils, n_pt, obstacle, x, 0.0, 0.0, DHAT, 1.0,
-                                grad, act, w, nrm, coef)
+                                grad, act, w, nrm, coef, force)
 
     def ccd():
-        st, n = contact_stencils(x, dx, faces, edges, obstacle, True, 0.0)
+        st, n = contact_stencils(x, dx, np.zeros(len(x)), faces, edges, obstacle, True, 0.0)
         return collision_free_step(x, dx, st, n, obstacle, 0.0, 0.0, 1.0)
 
     _, n_active, _ = derivatives()

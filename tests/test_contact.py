@@ -9,8 +9,10 @@ import numpy as np
 import pytest
 
 from clothtool.contact.barrier import (barrier, barrier_first, barrier_second, contact_assemble,
-                                       contact_energy, gauss_newton_diagonal,
-                                       gauss_newton_multiply, mollifier)
+                                       contact_energy, gauss_newton_coupling,
+                                       gauss_newton_diagonal, gauss_newton_multiply,
+                                       gauss_newton_offdiagonal_multiply, mollifier,
+                                       solve_operator)
 from clothtool.contact.broadphase import contact_stencils, mesh_edges
 from clothtool.contact.ccd import additive_ccd, collision_free_step
 from clothtool.contact.distance import edge_edge_weights, point_triangle_weights
@@ -117,9 +119,10 @@ def assemble(x, stencils, n_pt, rest, xi, dhat, kappa):
     grad = np.zeros_like(x)
     act, w, nrm, coef = np.zeros(k, np.int64), np.zeros((k, 4)), np.zeros((k, 3)), np.zeros(k)
     obstacle = np.zeros(len(x), bool)
+    force = np.zeros(k)
     e, n_act, gap = contact_assemble(x, stencils, n_pt, obstacle, rest, xi, xi, dhat, kappa,
-                                     grad, act, w, nrm, coef)
-    return e, grad, (act, n_act, w, nrm, coef), gap
+                                     grad, act, w, nrm, coef, force)
+    return e, grad, (act, n_act, w, nrm, coef, force), gap
 
 
 @pytest.mark.parametrize("kind", ["pt", "ee"])
@@ -129,7 +132,7 @@ def test_barrier_energy_and_gradient_match_ipctk_and_finite_differences(kind, se
     dhat, kappa = 0.05, 3.0
     x, faces, edges = two_elements(rng, kind, 0.02)
     obstacle = np.zeros(4, bool)
-    stencils, n_pt = contact_stencils(x, np.zeros_like(x), faces, edges, obstacle, True, dhat)
+    stencils, n_pt = contact_stencils(x, np.zeros_like(x), np.zeros(len(x)), faces, edges, obstacle, True, dhat)
     assert len(stencils) == 1 and n_pt == (1 if kind == "pt" else 0)
     e, grad, _, _ = assemble(x, stencils, n_pt, x, 0.0, dhat, kappa)
     mesh = ipctk.CollisionMesh(x, edges, faces)
@@ -163,8 +166,9 @@ def test_gauss_newton_hessian_is_exact_along_the_normal_of_a_vertex_over_a_face(
     """A vertex over a fixed triangle: d is linear in p, so H_pp = κ g''(d) n nᵀ exactly."""
     x = np.array([[0.3, 0.2, 0.01], [0, 0, 0], [1, 0, 0], [0, 1, 0]], float)
     stencils, dhat, kappa = np.array([[0, 1, 2, 3]]), 0.02, 1.5
-    _, _, (act, n_act, w, nrm, coef), gap = assemble(x, stencils, 1, x, xi, dhat, kappa)
-    assert n_act == 1 and gap == pytest.approx(0.01 - xi)
+    _, grad, (act, n_act, w, nrm, coef, force), gap = assemble(x, stencils, 1, x, xi, dhat, kappa)
+    assert n_act == 1 and gap == pytest.approx(0.01)
+    assert force[0] > 0 and np.allclose(grad[0], -force[0] * nrm[0])  # pushes p along +n
     hess = np.zeros((4, 3, 4, 3))
     for k in range(4):
         for i in range(3):
@@ -181,6 +185,44 @@ def test_gauss_newton_hessian_is_exact_along_the_normal_of_a_vertex_over_a_face(
     diag = np.zeros((4, 3, 3))
     gauss_newton_diagonal(stencils, act, n_act, w, nrm, coef, diag)
     assert np.allclose(diag, [hess[k, :, k, :] for k in range(4)])
+
+
+def test_solve_operators_split_the_gauss_newton_hessian():
+    """diagonal blocks + off-diagonal product = H on the unknowns (vertices < n); the
+    coupling is H between unknowns and held vertices."""
+    rng = np.random.default_rng(4)
+    x, faces = rolled_sheet(n=8, gap=(0.004, 0.006))
+    x = np.vstack([x, plate_under(x)])
+    faces = np.vstack([faces, [[64, 65, 66]]])
+    obstacle = np.arange(67) >= 64
+    stencils, n_pt = contact_stencils(x, np.zeros_like(x), np.zeros(67), faces, mesh_edges(faces),
+                                      obstacle, True, 0.05)
+    k = len(stencils)
+    act, w, nrm, coef, force = (np.zeros(k, np.int64), np.zeros((k, 4)), np.zeros((k, 3)),
+                                np.zeros(k), np.zeros(k))
+    _, n_act, _ = contact_assemble(x, stencils, n_pt, obstacle, x, 0.001, 0.001, 0.05, 1.0,
+                                   np.zeros_like(x), act, w, nrm, coef, force)
+    assert n_act > 10 and any(obstacle[stencils[a]].any() for a in act[:n_act])
+    v = rng.normal(size=x.shape)
+    full = np.zeros_like(x)
+    gauss_newton_multiply(stencils, act, n_act, w, nrm, coef, np.where(obstacle[:, None], 0, v), full)
+    diag = np.zeros((67, 3, 3))
+    gauss_newton_diagonal(stencils, act, n_act, w, nrm, coef, diag)
+    op = solve_operator(stencils, act, n_act, w, nrm, coef, 64)
+    split = np.einsum("vij,vj->vi", diag, v)
+    gauss_newton_offdiagonal_multiply(op, v, split, 1.0)
+    assert np.allclose(split[:64], full[:64])
+    coupled = np.zeros_like(x)
+    gauss_newton_multiply(stencils, act, n_act, w, nrm, coef, np.where(obstacle[:, None], v, 0), coupled)
+    out = np.zeros_like(x)
+    gauss_newton_coupling(op, v, out, 2.0)
+    assert np.allclose(out[:64], 2.0 * coupled[:64]) and np.abs(out[:64]).max() > 0
+
+
+def plate_under(x):
+    """A big triangle in a plane z = const, 3 mm beyond the lowest z of x."""
+    z = x[:, 2].min() - 0.003
+    return np.array([[-2.0, -2.0, z], [2.0, -2.0, z], [0.0, 2.0, z]])
 
 
 def test_energy_is_infinite_inside_the_thickness_and_zero_beyond_activation():
@@ -236,7 +278,7 @@ def test_ccd_step_is_free_of_intersections_and_close_to_ipctk(seed):
     edges = mesh_edges(faces)
     obstacle = np.zeros(len(x0), bool)
     assert has_intersections(x0 + dx, faces)  # the full step crosses layers
-    stencils, n_pt = contact_stencils(x0, dx, faces, edges, obstacle, True, 0.0)
+    stencils, n_pt = contact_stencils(x0, dx, np.zeros(len(x0)), faces, edges, obstacle, True, 0.0)
     t = collision_free_step(x0, dx, stencils, n_pt, obstacle, 0.0, 0.0, 1.0)
     mesh = ipctk.CollisionMesh(x0, edges, faces)
     t_ipc = ipctk.compute_collision_free_stepsize(mesh, x0, x0 + dx)
@@ -249,13 +291,13 @@ def test_ccd_step_is_free_of_intersections_and_close_to_ipctk(seed):
 def test_ccd_with_thickness_keeps_every_pair_apart(seed):
     x0, dx, faces = sheet_motion(seed)
     edges, obstacle, xi = mesh_edges(faces), np.zeros(len(x0), bool), 0.002
-    stencils, n_pt = contact_stencils(x0, dx, faces, edges, obstacle, True, xi)
+    stencils, n_pt = contact_stencils(x0, dx, np.zeros(len(x0)), faces, edges, obstacle, True, xi)
     t = collision_free_step(x0, dx, stencils, n_pt, obstacle, xi, xi, 1.0)
     assert 0.0 < t < 1.0
     # every pair (brute force over all pairs within reach) stays farther than xi
-    allst, n_all = contact_stencils(x0, dx, faces, edges, obstacle, True, 10.0)
+    allst, n_all = contact_stencils(x0, dx, np.zeros(len(x0)), faces, edges, obstacle, True, 10.0)
     for s in np.linspace(0.0, t, 20):
-        assert assemble(x0 + s * dx, allst, n_all, x0, xi, 1e-9, 1.0)[3] > 0.0
+        assert assemble(x0 + s * dx, allst, n_all, x0, xi, 1e-9, 1.0)[3] > xi
 
 
 # ---------------------------------------------------------------- broad phase
@@ -290,7 +332,7 @@ def test_broad_phase_finds_every_pair_within_reach(self_contact):
     obstacle = np.arange(len(x)) >= 100
     for motion in (np.zeros_like(x), 0.01 * np.random.default_rng(1).normal(size=x.shape)):
         r = 0.03
-        stencils, n_pt = contact_stencils(x, motion, faces, edges, obstacle, self_contact, r)
+        stencils, n_pt = contact_stencils(x, motion, np.zeros(len(x)), faces, edges, obstacle, self_contact, r)
         got = {(k >= n_pt, *s) for k, s in enumerate(stencils)}
         assert len(got) == len(stencils)  # each pair once
         for s in np.linspace(0, 1, 5):

@@ -116,12 +116,13 @@ def contact_energy(x, stencils, n_pt, obstacle, rest, xi_self, xi_obstacle, dhat
 
 @njit(cache=True)
 def contact_assemble(x, stencils, n_pt, obstacle, rest, xi_self, xi_obstacle, dhat, kappa,
-                     grad, active, weights, normals, coef):
+                     grad, active, weights, normals, coef, force):
     """Energy of the pairs; adds ∇E into grad (N, 3) and stores the Gauss–Newton Hessian of
     each active pair a: stencil index active[a], weights[a] (4,), normal normals[a] (3,),
-    coefficient coef[a] (arrays of the stencils' length).
+    coefficient coef[a], and its normal force −∂E/∂d = −κ m g'(d) ≥ 0 in force[a] (arrays
+    of the stencils' length).
 
-    Returns (energy, number of active pairs, smallest pair distance d − ξ over all stencils).
+    Returns (energy, number of active pairs, smallest pair distance d over all stencils).
     """
     total = 0.0
     gap = np.inf
@@ -134,7 +135,7 @@ def contact_assemble(x, stencils, n_pt, obstacle, rest, xi_self, xi_obstacle, dh
         xi = pair_thickness(st, obstacle, xi_self, xi_obstacle)
         d2 = pair_distance(x, st, ee, w)
         d = np.sqrt(d2)
-        gap = min(gap, d - xi)
+        gap = min(gap, d)
         u = d2 - xi * xi
         uhat = dhat * (2.0 * xi + dhat)
         if u >= uhat:
@@ -163,6 +164,7 @@ def contact_assemble(x, stencils, n_pt, obstacle, rest, xi_self, xi_obstacle, dh
         for i in range(3):
             normals[n_act, i] = r[i] / d
         coef[n_act] = kappa * m * max(g2, 0.0)
+        force[n_act] = -kappa * m * b1 * 2.0 * d / uhat
         n_act += 1
     return kappa * total, n_act, gap
 
@@ -198,6 +200,59 @@ def gauss_newton_multiply(stencils, active, n_active, weights, normals, coef, v,
         for j in range(4):
             for i in range(3):
                 out[st[j], i] += s * weights[a, j] * normals[a, i]
+
+
+@njit(cache=True)
+def gauss_newton_offdiagonal_multiply(operator, v, out, scale):
+    """out += scale (H − blockdiag H) v over the vertices below n, the unknowns of a solve (the
+    others are held); ``operator`` = (stencils, active, n_active, weights, normals, coef, n),
+    see :func:`solve_operator`. The diagonal blocks go into the matrix itself."""
+    stencils, active, n_active, weights, normals, coef, n = operator
+    for a in range(n_active):
+        st = stencils[active[a]]
+        s = 0.0
+        for j in range(4):
+            if st[j] < n:
+                s += weights[a, j] * (normals[a, 0] * v[st[j], 0] + normals[a, 1] * v[st[j], 1]
+                                      + normals[a, 2] * v[st[j], 2])
+        for j in range(4):
+            v_j = st[j]
+            if v_j < n:
+                own = weights[a, j] * (normals[a, 0] * v[v_j, 0] + normals[a, 1] * v[v_j, 1]
+                                       + normals[a, 2] * v[v_j, 2])
+                c = scale * coef[a] * weights[a, j] * (s - own)
+                for i in range(3):
+                    out[v_j, i] += c * normals[a, i]
+
+
+@njit(cache=True)
+def gauss_newton_coupling(operator, dy, out, scale):
+    """out += scale H_{uh} dy_h: the Hessian blocks between the unknowns (vertices below n)
+    and the held vertices, applied to the held vertices' part of dy (all vertices)."""
+    stencils, active, n_active, weights, normals, coef, n = operator
+    for a in range(n_active):
+        st = stencils[active[a]]
+        s = 0.0
+        for j in range(4):
+            if st[j] >= n:
+                s += weights[a, j] * (normals[a, 0] * dy[st[j], 0] + normals[a, 1] * dy[st[j], 1]
+                                      + normals[a, 2] * dy[st[j], 2])
+        if s == 0.0:
+            continue
+        for j in range(4):
+            if st[j] < n:
+                c = scale * coef[a] * weights[a, j] * s
+                for i in range(3):
+                    out[st[j], i] += c * normals[a, i]
+
+
+def solve_operator(stencils, active, n_active, weights, normals, coef, n):
+    """The tuple :func:`gauss_newton_offdiagonal_multiply` takes."""
+    return (stencils, active, np.int64(n_active), weights, normals, coef, np.int64(n))
+
+
+NO_OPERATOR = solve_operator(np.zeros((0, 4), np.int64), np.zeros(0, np.int64), 0,
+                             np.zeros((0, 4)), np.zeros((0, 3)), np.zeros(0), 0)
 
 
 @njit(cache=True)

@@ -21,15 +21,15 @@ MAX_CELLS_PER_BOX = 8.0  # cells of the grid per binned box at most (grows the c
 
 
 @njit(cache=True)
-def vertex_boxes(x, dx):
-    """(lo, hi), each (N, 3): the boxes of x_v and x_v + dx_v."""
+def vertex_boxes(x, dx, rho):
+    """(lo, hi), each (N, 3): the boxes of x_v and x_v + dx_v, grown by rho_v."""
     lo = np.empty_like(x)
     hi = np.empty_like(x)
     for i in range(x.shape[0]):
         for k in range(3):
             a, b = x[i, k], x[i, k] + dx[i, k]
-            lo[i, k] = min(a, b)
-            hi[i, k] = max(a, b)
+            lo[i, k] = min(a, b) - rho[i]
+            hi[i, k] = max(a, b) + rho[i]
     return lo, hi
 
 
@@ -191,27 +191,27 @@ def box_pairs(alo, ahi, elem_a, blo, bhi, elem_b, r, obstacle, self_contact, sam
 
 
 @njit(cache=True)
-def _motion_bound(dx, st, edge_edge):
-    """l = max ‖dx‖ over one side + max over the other: the pair's distance changes by at
-    most l·t over x + t dx."""
+def _motion_bound(dx, rho, st, edge_edge):
+    """l = max (‖dx‖ + ρ) over one side + max over the other: the pair's distance at x
+    changes by at most l for vertices anywhere within ρ of x + t dx, t ∈ [0, 1]."""
     m = np.zeros(4)
     for j in range(4):
-        m[j] = np.sqrt(dx[st[j], 0] ** 2 + dx[st[j], 1] ** 2 + dx[st[j], 2] ** 2)
+        m[j] = np.sqrt(dx[st[j], 0] ** 2 + dx[st[j], 1] ** 2 + dx[st[j], 2] ** 2) + rho[st[j]]
     if edge_edge:
         return max(m[0], m[1]) + max(m[2], m[3])
     return m[0] + max(m[1], m[2], m[3])
 
 
 @njit(cache=True)
-def contact_stencils(x, dx, faces, edges, obstacle, self_contact, r):
+def contact_stencils(x, dx, rho, faces, edges, obstacle, self_contact, r):
     """Candidate pairs over the motion x → x + dx as (K, 4) vertex stencils and the count of
     vertex–triangle ones (first; (p, a, b, c)), the rest edge–edge ((a0, a1, b0, b1)).
 
-    Holds every allowed pair that comes closer than r at some point of the motion: the
-    pairs of overlapping boxes, less those whose distance at x exceeds r plus their
-    motion bound (see ``_motion_bound``).
+    Holds every allowed pair that comes closer than r while each vertex v is within
+    rho_v (N,) of its motion x_v + t dx_v, t ∈ [0, 1]: the pairs of overlapping boxes, less
+    those whose distance at x exceeds r plus their motion bound (see ``_motion_bound``).
     """
-    vlo, vhi = vertex_boxes(x, dx)
+    vlo, vhi = vertex_boxes(x, dx, rho)
     flo, fhi = element_boxes(vlo, vhi, faces)
     elo, ehi = element_boxes(vlo, vhi, edges)
     verts = np.arange(x.shape[0]).reshape(-1, 1)
@@ -225,7 +225,7 @@ def contact_stencils(x, dx, faces, edges, obstacle, self_contact, r):
         st = stencils[n]
         st[0], st[1], st[2], st[3] = vf[k, 0], faces[f, 0], faces[f, 1], faces[f, 2]
         d = np.sqrt(point_triangle_weights(x, st[0], st[1], st[2], st[3], w))
-        if d - _motion_bound(dx, st, False) < r:
+        if d - _motion_bound(dx, rho, st, False) < r:
             n += 1
     n_pt = n
     for k in range(ee.shape[0]):
@@ -233,7 +233,7 @@ def contact_stencils(x, dx, faces, edges, obstacle, self_contact, r):
         st[0], st[1] = edges[ee[k, 0], 0], edges[ee[k, 0], 1]
         st[2], st[3] = edges[ee[k, 1], 0], edges[ee[k, 1], 1]
         d = np.sqrt(edge_edge_weights(x, st[0], st[1], st[2], st[3], w))
-        if d - _motion_bound(dx, st, True) < r:
+        if d - _motion_bound(dx, rho, st, True) < r:
             n += 1
     return stencils[:n].copy(), n_pt
 

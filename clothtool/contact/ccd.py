@@ -45,6 +45,8 @@ def additive_ccd(x4, dx4, edge_edge, xi, eta, tmax):
     if d2 <= xi * xi:
         return 0.0
     d = np.sqrt(d2)
+    if d - xi > lp * tmax:  # cannot close the gap before t_max
+        return tmax
     gap = (1.0 - eta) * (d2 - xi * xi) / (d + xi)
     t = 0.0
     for _ in range(MAX_ITERATIONS):
@@ -80,3 +82,25 @@ def collision_free_step(x, dx, stencils, n_pt, obstacle, xi_self, xi_obstacle, t
         if t == 0.0:
             break
     return t
+
+
+@njit(cache=True)
+def near_pairs(x, dx, stencils, n_pt, reach):
+    """(stencils, count of vertex–triangle ones) of the candidates that can come within
+    ``reach`` somewhere on x + [0, 1] dx: distance at x minus the motion bound (the sum of
+    the largest displacement on each side) below reach."""
+    w = np.empty(4)
+    keep = np.empty(stencils.shape[0], dtype=np.bool_)
+    n_near_pt = 0
+    for k in range(stencils.shape[0]):
+        st = stencils[k]
+        ee = k >= n_pt
+        d = np.sqrt(pair_distance(x, st, ee, w))
+        m = np.empty(4)
+        for j in range(4):
+            m[j] = np.sqrt(dx[st[j], 0] ** 2 + dx[st[j], 1] ** 2 + dx[st[j], 2] ** 2)
+        bound = (max(m[0], m[1]) + max(m[2], m[3])) if ee else (m[0] + max(m[1], m[2], m[3]))
+        keep[k] = d - bound < reach
+        if keep[k] and not ee:
+            n_near_pt += 1
+    return stencils[keep].copy(), n_near_pt

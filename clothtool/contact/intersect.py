@@ -21,6 +21,7 @@ from numba import njit
 from clothtool.contact.broadphase import box_pairs, element_boxes, mesh_edges, vertex_boxes
 
 ERRBOUND_A = (7.0 + 56.0 * 2.0**-53) * 2.0**-53
+CCW_ERRBOUND_A = (3.0 + 16.0 * 2.0**-53) * 2.0**-53
 NO, YES, UNSURE = 0, 1, 2
 
 
@@ -45,6 +46,38 @@ def orient3d(a, b, c, d):
 
 
 @njit(cache=True)
+def orient2d(a, b, c, i, j):
+    """Sign of the 2D orientation of a, b, c in coordinates (i, j), or 0 when uncertain
+    (Shewchuk's ccwerrboundA)."""
+    left = (a[i] - c[i]) * (b[j] - c[j])
+    right = (a[j] - c[j]) * (b[i] - c[i])
+    det = left - right
+    bound = CCW_ERRBOUND_A * (abs(left) + abs(right))
+    if det > bound:
+        return 1
+    if -det > bound:
+        return -1
+    return 0
+
+
+@njit(cache=True)
+def _separated_in_projection(p, q, a, b, c):
+    """True when the projections of pq and abc onto a coordinate plane are certainly apart
+    (a separating axis among the edge normals of both): then so are pq and abc."""
+    e1, e2 = b - a, c - a
+    n0 = abs(e1[1] * e2[2] - e1[2] * e2[1])
+    n1 = abs(e1[2] * e2[0] - e1[0] * e2[2])
+    n2 = abs(e1[0] * e2[1] - e1[1] * e2[0])
+    i, j = (1, 2) if n0 >= n1 and n0 >= n2 else ((2, 0) if n1 >= n2 else (0, 1))
+    for u, v, w in ((a, b, c), (b, c, a), (c, a, b)):
+        side = orient2d(u, v, w, i, j)
+        if side != 0 and orient2d(u, v, p, i, j) == -side and orient2d(u, v, q, i, j) == -side:
+            return True
+    sa = orient2d(p, q, a, i, j)
+    return sa != 0 and orient2d(p, q, b, i, j) == sa and orient2d(p, q, c, i, j) == sa
+
+
+@njit(cache=True)
 def segment_triangle(p, q, a, b, c):
     """NO or YES when the filtered signs decide whether segment pq meets triangle abc, else UNSURE."""
     s1, s2 = orient3d(a, b, c, p), orient3d(a, b, c, q)
@@ -55,6 +88,8 @@ def segment_triangle(p, q, a, b, c):
         return NO
     if s1 * s2 < 0 and t1 != 0 and t1 == t2 and t2 == t3:
         return YES
+    if _separated_in_projection(p, q, a, b, c):  # near-coplanar but apart
+        return NO
     return UNSURE
 
 
@@ -117,8 +152,7 @@ def exact_segment_triangle(p, q, a, b, c):
 @njit(cache=True)
 def _edge_face_candidates(x, edges, faces, obstacle):
     """Edge–face pairs whose boxes touch, filtered, with their filtered verdict (K,)."""
-    zero = np.zeros_like(x)
-    vlo, vhi = vertex_boxes(x, zero)
+    vlo, vhi = vertex_boxes(x, np.zeros_like(x), np.zeros(x.shape[0]))
     elo, ehi = element_boxes(vlo, vhi, edges)
     flo, fhi = element_boxes(vlo, vhi, faces)
     pairs = box_pairs(elo, ehi, edges, flo, fhi, faces, 0.0, obstacle, True, False)

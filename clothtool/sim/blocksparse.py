@@ -29,6 +29,7 @@ kernels underneath take the plain arrays these unpack to.
 import numpy as np
 from numba import njit
 
+from clothtool.contact.barrier import NO_OPERATOR, gauss_newton_offdiagonal_multiply
 from clothtool.sim.filter import PINNED, apply_filter
 from clothtool.sim.multigrid import NO_MULTIGRID, setup_levels, vcycle
 from clothtool.vec3 import inverse3
@@ -225,25 +226,36 @@ def _precondition(inv, r, kind, normal, constrained, z, mg):
         apply_filter(z, kind, normal)
 
 
-def filtered_pcg(matrix, b, x, constraints, tol, max_iter, preconditioner):
+def filtered_pcg(matrix, b, x, constraints, tol, max_iter, preconditioner, extra=NO_OPERATOR):
     """Solve S(A x − b) = 0 from x, whose constrained components (I − S)x stay as given.
 
     ``matrix``: a :class:`BlockMatrix`; ``constraints``: a :class:`ConstraintFilter`
     (S); ``preconditioner``: :class:`BlockJacobi` or a
-    :class:`~clothtool.sim.multigrid.Hierarchy`. Stops when the true relative residual
+    :class:`~clothtool.sim.multigrid.Hierarchy`; ``extra``: off-diagonal contact blocks
+    applied matrix-free (:func:`~clothtool.contact.barrier.solve_operator`), whose diagonal
+    blocks are already in the matrix. Stops when the true relative residual
     ‖S(b − Ax)‖ / ‖S b‖ ≤ ``tol`` or after ``max_iter`` iterations.
     Returns (iterations, relative true residual).
     """
     return filtered_pcg_arrays(matrix.pattern.row_ptr, matrix.pattern.col, matrix.values,
                                matrix.pattern.diag, b, x, constraints.kind, constraints.normal,
-                               constraints.active, tol, max_iter, preconditioner.arrays)
+                               constraints.active, tol, max_iter, preconditioner.arrays, extra)
+
+
+@njit(cache=True)
+def _residual_with(row_ptr, col, values, extra, b, x, r):
+    """r = b − (A + H_extra) x."""
+    residual(row_ptr, col, values, b, x, r)
+    if extra[2] > 0:
+        gauss_newton_offdiagonal_multiply(extra, x, r, -1.0)
 
 
 @njit(cache=True)
 def filtered_pcg_arrays(row_ptr, col, values, diag, b, x, kind, normal, constrained, tol,
-                        max_iter, mg):
+                        max_iter, mg, extra):
     """:func:`filtered_pcg` on plain arrays: ``constrained`` False skips the filter; ``mg``
-    the arrays of a multigrid hierarchy, or ``NO_MULTIGRID`` for block Jacobi."""
+    the arrays of a multigrid hierarchy, or ``NO_MULTIGRID`` for block Jacobi; ``extra``
+    the matrix-free contact blocks (``NO_OPERATOR`` for none)."""
     n = b.shape[0]
     inv = block_jacobi(values, diag, kind)
     if len(mg[0]) > 1:
@@ -255,7 +267,7 @@ def filtered_pcg_arrays(row_ptr, col, values, diag, b, x, kind, normal, constrai
     r = np.empty((n, 3))
     z = np.empty((n, 3))
     q = np.empty((n, 3))
-    residual(row_ptr, col, values, b, x, r)
+    _residual_with(row_ptr, col, values, extra, b, x, r)
     if constrained:
         apply_filter(r, kind, normal)
     if b_norm == 0.0:
@@ -268,7 +280,7 @@ def filtered_pcg_arrays(row_ptr, col, values, diag, b, x, kind, normal, constrai
     while it < max_iter:
         if res <= tol:
             # confirm on the true residual before stopping
-            residual(row_ptr, col, values, b, x, r)
+            _residual_with(row_ptr, col, values, extra, b, x, r)
             if constrained:
                 apply_filter(r, kind, normal)
             res = np.sqrt(_dot(r, r)) / b_norm
@@ -278,6 +290,8 @@ def filtered_pcg_arrays(row_ptr, col, values, diag, b, x, kind, normal, constrai
             p[:] = z
             rz = _dot(r, z)
         block_multiply(row_ptr, col, values, p, q)
+        if extra[2] > 0:
+            gauss_newton_offdiagonal_multiply(extra, p, q, 1.0)
         if constrained:
             apply_filter(q, kind, normal)
         pq = _dot(p, q)
@@ -293,7 +307,7 @@ def filtered_pcg_arrays(row_ptr, col, values, diag, b, x, kind, normal, constrai
         res = np.sqrt(_dot(r, r)) / b_norm
         it += 1
     if it == max_iter:
-        residual(row_ptr, col, values, b, x, r)
+        _residual_with(row_ptr, col, values, extra, b, x, r)
         if constrained:
             apply_filter(r, kind, normal)
         res = np.sqrt(_dot(r, r)) / b_norm

@@ -30,7 +30,9 @@ from clothtool.errors import InputError
 # optional config features a method may support (pins and colliders work with every method:
 # colliders at least project vertices out after each step)
 FRICTION = "friction"  # Coulomb friction on colliders (scene.colliders[i].*.friction > 0)
-FEATURES = (FRICTION,)
+CONTACT = "contact"  # mesh colliders and self-collision: barrier contact, intersection-free
+MOVING_PINS = "moving pins"  # scene.pins entries with rotate or translate
+FEATURES = (FRICTION, CONTACT, MOVING_PINS)
 
 
 @dataclass(frozen=True)
@@ -46,7 +48,8 @@ class Method:
 
 
 METHODS = {m.name: m for m in (
-    Method("implicit", "clothtool.sim.solvers.implicit:ImplicitEuler", frozenset({FRICTION}),
+    Method("implicit", "clothtool.sim.solvers.implicit:ImplicitEuler",
+           frozenset({FRICTION, CONTACT, MOVING_PINS}),
            "Baraff–Witkin implicit Euler, Newton + filtered PCG"),
     Method("mass-spring", "clothtool.sim.solvers.mass_spring:MassSpringImplicit",
            summary="implicit Euler on a spring network"),
@@ -64,9 +67,17 @@ def requested_features(config):
     asks for."""
     out = []
     for i, collider in enumerate(config.scene.colliders):
-        if collider.friction > 0:
-            kind = type(collider).__name__.lower()
+        kind = {"Sphere": "sphere", "Plane": "plane"}.get(type(collider).__name__, "mesh")
+        if kind == "mesh":
+            out.append((CONTACT, f"scene.colliders[{i}].mesh"))
+        elif collider.friction > 0:
             out.append((FRICTION, f"scene.colliders[{i}].{kind}.friction"))
+    if config.scene.self_collision is not None:
+        out.append((CONTACT, "scene.self_collision"))
+    for i, pin in enumerate(config.scene.pins):
+        motion = getattr(pin, "motion", None)
+        if motion is not None:
+            out.append((MOVING_PINS, f"scene.pins[{i}].{'rotate' if pin.rotate else 'translate'}"))
     return out
 
 

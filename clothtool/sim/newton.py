@@ -27,20 +27,23 @@ Vertices held by pins or (for methods with ``contacts``) collider contacts
 import numpy as np
 
 from clothtool.errors import NumericalError
+from clothtool.contact.barrier import NO_OPERATOR
 from clothtool.sim.blocksparse import BlockMatrix, ConstraintFilter, filtered_pcg
 from clothtool.sim.collide import apply_friction, contact_constraints, resolve_collisions
+from clothtool.sim.contact import BarrierContact
 from clothtool.sim.integrator import Integrator, StepReport, gravity_potential, mass_weighted
 from clothtool.sim.multigrid import make_preconditioner
 
 MAX_HALVINGS = 30  # down to 2⁻³⁰: a descent direction always decreases E for a small enough step
+REACHED = 1e-9  # m: moving pins and animated colliders this close to their goal have reached it
 
 
-def backtracking_step(potential, x, dx, e0, max_halvings=MAX_HALVINGS):
-    """The first step 1, 1/2, 1/4, … (at most ``max_halvings`` halvings) with
-    potential(x + step·dx) ≤ e0 = potential(x); 0 when none is found."""
-    step = 1.0
+def backtracking_step(energy_at, e0, start=1.0, max_halvings=MAX_HALVINGS):
+    """The first step s = start, start/2, … (at most ``max_halvings`` halvings) with
+    energy_at(s) ≤ e0 = energy_at(0); 0 when none is found."""
+    step = start
     for _ in range(max_halvings):
-        if potential(x + step * dx) <= e0:
+        if energy_at(step) <= e0:
             return step
         step *= 0.5
     return 0.0
@@ -70,6 +73,11 @@ class NewtonIntegrator(Integrator):
         self._contact = np.full(n, -1, dtype=np.int64)
         self.preconditioner = make_preconditioner(
             solver.preconditioner if self.multigrid else "jacobi", pattern, model.faces)
+        self.contact = None  # mesh colliders and self-collision (clothtool.sim.contact)
+        if model.contact is not None:
+            self.contact = BarrierContact(model.contact, model.mass, model.free, h,
+                                          max(model.k_stretch, model.k_shear))
+            self.contact.check_initial(model.mesh.positions)
 
     def _damping_energy(self, dx):
         """1/2 dxᵀ D dx, and D dx left in self._tmp."""
@@ -96,6 +104,11 @@ class NewtonIntegrator(Integrator):
         dx = h * state.v  # PCG guess: the previous motion
         if model.has_pins:
             dx[model.pinned] = 0.0
+        moving = model.moving_pinned
+        goal = model.pin_goal(state.time + h) if len(moving) else None  # end-of-step positions
+        contact = self.contact
+        if contact is not None:
+            contact.begin(x_n, state.v, state.time, moving, goal)
         constrained = model.has_pins
         contacts = self.contacts and model.has_colliders
         if contacts:
@@ -118,34 +131,78 @@ class NewtonIntegrator(Integrator):
             if self._damping is not None and it > 0:
                 self._damping_energy(x - x_n)
                 grad += self._tmp
+            if contact is not None:
+                elastic += contact.assemble(x, grad, matrix)
             matrix.add_diagonal(inertia)
             if it > 0:
                 dx = np.zeros_like(x)  # constrained components were reached in the first step
-            cg_its, res = filtered_pcg(matrix, -grad, dx, constraints, solver.tolerance,
-                                       solver.max_iterations, self.preconditioner)
+            # moving pins and animated colliders still short of their end-of-step positions
+            # move with this Newton step: the pins as prescribed components of the solve, the
+            # colliders through the linearised barrier force, −H_cX ΔX on the right-hand side
+            prescribed = self._behind(x, moving, goal) > REACHED
+            rhs = -grad
+            if prescribed and goal is not None:
+                dx[moving] = goal - x[moving]
+            if prescribed and contact is not None:
+                contact.add_collider_coupling(rhs)
+            cg_its, res = filtered_pcg(matrix, rhs, dx, constraints, solver.tolerance,
+                                       solver.max_iterations, self.preconditioner,
+                                       contact.operator if contact is not None else NO_OPERATOR)
             report.newton_iterations += 1
             report.cg_iterations += cg_its
             report.residual = max(report.residual, res)
             if not np.all(np.isfinite(dx)):
                 raise NumericalError("the linear solve produced non-finite values")
+            # a step with prescribed motion is taken as far as it is collision-free (E need not
+            # fall: the prescribed part adds energy); otherwise the line search from there
             step = 1.0
-            if solver.line_search:
+            if contact is not None:
+                step = contact.max_step(dx)
+                if not prescribed:
+                    step = backtracking_step(
+                        lambda s: (self._potential(x + s * dx, x_n, target,
+                                                   self.elastic_energy(x + s * dx))
+                                   + contact.energy(s)),
+                        self._potential(x, x_n, target, elastic), start=step)
+                contact.advance(step)
+            elif solver.line_search and not prescribed:
                 step = backtracking_step(
-                    lambda y: self._potential(y, x_n, target, self.elastic_energy(y)),
-                    x, dx, self._potential(x, x_n, target, elastic))
+                    lambda s: self._potential(x + s * dx, x_n, target,
+                                              self.elastic_energy(x + s * dx)),
+                    self._potential(x, x_n, target, elastic))
             if step > 0.0:
                 x += step * dx
-            if step == 0.0 or np.max(np.abs(step * dx)) <= solver.newton_tolerance * h:
+                if prescribed and step == 1.0 and goal is not None:
+                    x[moving] = goal  # exactly
+            done = step == 0.0 or np.max(np.abs(step * dx)) <= solver.newton_tolerance * h
+            if done and self._behind(x, moving, goal) <= REACHED:
                 break
+        behind = self._behind(x, moving, goal)
+        if behind > REACHED:
+            raise NumericalError(
+                f"a moving pin or collider could not reach its position without crossing the "
+                f"cloth (still {behind:.3g} m away after {report.newton_iterations} Newton steps)")
         state.v = (x - x_n) / h
         state.x = x
         state.time += h
+        if contact is not None:
+            contact.finish(state)
+            report.contacts, report.min_separation = contact.contacts, contact.min_separation
         if contacts:
             self._contact_response(state, -grad, dx)
         elif model.has_colliders:
             resolve_collisions(state.x, state.v, model.free, model.spheres, model.planes,
                                model.collision_margin)
         return report
+
+    def _behind(self, x, moving, goal):
+        """How far (m) moving pins and animated colliders are from their end-of-step positions."""
+        worst = 0.0
+        if goal is not None:
+            worst = float(np.max(np.abs(goal - x[moving])))
+        if self.contact is not None:
+            worst = max(worst, self.contact.colliders_behind())
+        return worst
 
     def _contact_response(self, state, b, dx):
         """Friction from the constraint forces, release of pulling contacts, projection."""
