@@ -9,10 +9,9 @@ import numpy as np
 import pytest
 
 from clothtool.contact.barrier import (barrier, barrier_first, barrier_second, contact_assemble,
-                                       contact_energy, gauss_newton_coupling,
-                                       gauss_newton_diagonal, gauss_newton_multiply,
-                                       gauss_newton_offdiagonal_multiply, mollifier,
-                                       solve_operator)
+                                       contact_energy, gauss_newton_add_diagonal,
+                                       gauss_newton_coupling, gauss_newton_offdiagonal_multiply,
+                                       mollifier, solve_operator)
 from clothtool.contact.broadphase import contact_stencils, mesh_edges
 from clothtool.contact.ccd import additive_ccd, collision_free_step
 from clothtool.contact.distance import edge_edge_weights, point_triangle_weights
@@ -169,22 +168,23 @@ def test_gauss_newton_hessian_is_exact_along_the_normal_of_a_vertex_over_a_face(
     _, grad, (act, n_act, w, nrm, coef, force), gap = assemble(x, stencils, 1, x, xi, dhat, kappa)
     assert n_act == 1 and gap == pytest.approx(0.01)
     assert force[0] > 0 and np.allclose(grad[0], -force[0] * nrm[0])  # pushes p along +n
-    hess = np.zeros((4, 3, 4, 3))
-    for k in range(4):
-        for i in range(3):
-            v = np.zeros((4, 3))
-            v[k, i] = 1.0
-            out = np.zeros((4, 3))
-            gauss_newton_multiply(stencils, act, n_act, w, nrm, coef, v, out)
-            hess[:, :, k, i] = out
+    hess = dense_hessian(stencils, act, n_act, w, nrm, coef, 4)
     fd = central_difference(lambda p: assemble(np.vstack([p, x[1:]]), stencils, 1, x, xi, dhat,
                                                kappa)[1][0], x[0])
-    assert np.allclose(hess[0, :, 0, :], fd, rtol=1e-5, atol=1e-6 * np.abs(fd).max())
-    flat = hess.reshape(12, 12)
-    assert np.allclose(flat, flat.T) and np.linalg.eigvalsh(flat).min() > -1e-9 * np.abs(flat).max()
-    diag = np.zeros((4, 3, 3))
-    gauss_newton_diagonal(stencils, act, n_act, w, nrm, coef, diag)
-    assert np.allclose(diag, [hess[k, :, k, :] for k in range(4)])
+    assert np.allclose(hess[:3, :3], fd, rtol=1e-5, atol=1e-6 * np.abs(fd).max())
+    assert np.allclose(hess, hess.T) and np.linalg.eigvalsh(hess).min() > -1e-9 * np.abs(hess).max()
+
+
+def dense_hessian(stencils, active, n_active, weights, normals, coef, n_vertices):
+    """Σ_a coef_a g_a g_aᵀ with g_a = w_a ⊗ n_a on the pair's four vertices, dense (3N × 3N)."""
+    h = np.zeros((n_vertices, 3, n_vertices, 3))
+    for a in range(n_active):
+        st = stencils[active[a]]
+        g = weights[a][:, None] * normals[a][None, :]
+        for j in range(4):
+            for k in range(4):
+                h[st[j], :, st[k], :] += coef[a] * np.outer(g[j], g[k])
+    return h.reshape(3 * n_vertices, 3 * n_vertices)
 
 
 def test_solve_operators_split_the_gauss_newton_hessian():
@@ -203,20 +203,19 @@ def test_solve_operators_split_the_gauss_newton_hessian():
     _, n_act, _ = contact_assemble(x, stencils, n_pt, obstacle, x, 0.001, 0.001, 0.05, 1.0,
                                    np.zeros_like(x), act, w, nrm, coef, force)
     assert n_act > 10 and any(obstacle[stencils[a]].any() for a in act[:n_act])
+    h = dense_hessian(stencils, act, n_act, w, nrm, coef, 67)
     v = rng.normal(size=x.shape)
-    full = np.zeros_like(x)
-    gauss_newton_multiply(stencils, act, n_act, w, nrm, coef, np.where(obstacle[:, None], 0, v), full)
-    diag = np.zeros((67, 3, 3))
-    gauss_newton_diagonal(stencils, act, n_act, w, nrm, coef, diag)
     op = solve_operator(stencils, act, n_act, w, nrm, coef, 64)
-    split = np.einsum("vij,vj->vi", diag, v)
+    blocks = np.zeros((64, 3, 3))
+    gauss_newton_add_diagonal(op, np.arange(64), blocks)
+    split = np.einsum("vij,vj->vi", blocks, v[:64])
+    split = np.vstack([split, np.zeros((3, 3))])
     gauss_newton_offdiagonal_multiply(op, v, split, 1.0)
-    assert np.allclose(split[:64], full[:64])
-    coupled = np.zeros_like(x)
-    gauss_newton_multiply(stencils, act, n_act, w, nrm, coef, np.where(obstacle[:, None], v, 0), coupled)
+    assert np.allclose(split[:64].ravel(), h[:192, :192] @ v[:64].ravel())
     out = np.zeros_like(x)
     gauss_newton_coupling(op, v, out, 2.0)
-    assert np.allclose(out[:64], 2.0 * coupled[:64]) and np.abs(out[:64]).max() > 0
+    coupled = h[:192, 192:] @ v[64:].ravel()
+    assert np.allclose(out[:64].ravel(), 2.0 * coupled) and np.abs(coupled).max() > 0
 
 
 def plate_under(x):

@@ -188,21 +188,6 @@ def _add_cross_gradient(x, st, scale, grad):
 
 
 @njit(cache=True)
-def gauss_newton_multiply(stencils, active, n_active, weights, normals, coef, v, out):
-    """out += H v for the stored pair Hessians H_a = coef_a (w_a ⊗ n_a)(w_a ⊗ n_a)ᵀ."""
-    for a in range(n_active):
-        st = stencils[active[a]]
-        s = 0.0
-        for j in range(4):
-            s += weights[a, j] * (normals[a, 0] * v[st[j], 0] + normals[a, 1] * v[st[j], 1]
-                                  + normals[a, 2] * v[st[j], 2])
-        s *= coef[a]
-        for j in range(4):
-            for i in range(3):
-                out[st[j], i] += s * weights[a, j] * normals[a, i]
-
-
-@njit(cache=True)
 def gauss_newton_offdiagonal_multiply(operator, v, out, scale):
     """out += scale (H − blockdiag H) v over the vertices below n, the unknowns of a solve (the
     others are held); ``operator`` = (stencils, active, n_active, weights, normals, coef, n),
@@ -256,12 +241,17 @@ NO_OPERATOR = solve_operator(np.zeros((0, 4), np.int64), np.zeros(0, np.int64), 
 
 
 @njit(cache=True)
-def gauss_newton_diagonal(stencils, active, n_active, weights, normals, coef, diag):
-    """diag (N, 3, 3) += the 3×3 diagonal blocks coef w_j² n nᵀ of the stored pair Hessians."""
+def gauss_newton_add_diagonal(operator, diag, values):
+    """values[diag[v]] += the 3×3 diagonal blocks coef w_j² n nᵀ of the pair Hessians, for
+    the unknowns v < n (``operator`` as in :func:`gauss_newton_offdiagonal_multiply`;
+    ``diag``: each vertex's diagonal slot in the block matrix ``values``)."""
+    stencils, active, n_active, weights, normals, coef, n = operator
     for a in range(n_active):
         st = stencils[active[a]]
         for j in range(4):
-            s = coef[a] * weights[a, j] * weights[a, j]
-            for p in range(3):
-                for q in range(3):
-                    diag[st[j], p, q] += s * normals[a, p] * normals[a, q]
+            if st[j] < n:
+                s = coef[a] * weights[a, j] * weights[a, j]
+                b = values[diag[st[j]]]
+                for p in range(3):
+                    for q in range(3):
+                        b[p, q] += s * normals[a, p] * normals[a, q]

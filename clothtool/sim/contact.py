@@ -34,7 +34,8 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from clothtool.contact.barrier import (contact_assemble, contact_energy, gauss_newton_coupling,
+from clothtool.contact.barrier import (contact_assemble, contact_energy,
+                                       gauss_newton_add_diagonal, gauss_newton_coupling,
                                        pair_thickness, solve_operator)
 from clothtool.contact.broadphase import contact_stencils, mesh_edges
 from clothtool.contact.ccd import collision_free_step, near_pairs
@@ -94,20 +95,6 @@ def build_contact_scene(config, mesh):
                         np.ascontiguousarray(np.concatenate(rest)), sc is not None,
                         sc.thickness if sc is not None else 0.0, scene.collision_margin,
                         sc.friction if sc is not None else 0.0, mu)
-
-
-@njit(cache=True)
-def _add_diagonal(stencils, active, n_active, weights, normals, coef, n, diag, values):
-    """values[diag[v]] += coef w_j² n nᵀ for the pair vertices v < n (the unknowns)."""
-    for a in range(n_active):
-        st = stencils[active[a]]
-        for j in range(4):
-            if st[j] < n:
-                s = coef[a] * weights[a, j] * weights[a, j]
-                b = values[diag[st[j]]]
-                for p in range(3):
-                    for q in range(3):
-                        b[p, q] += s * normals[a, p] * normals[a, q]
 
 
 @njit(cache=True)
@@ -293,10 +280,9 @@ class BarrierContact:
         self.y[:n] = x
         energy, n_act, _ = self._assemble(self.y)
         grad += self._grad[:n]
-        _add_diagonal(self.assembled, self.active, n_act, self.weights, self.normals, self.coef,
-                      n, matrix.pattern.diag, matrix.values)
         self.operator = solve_operator(self.assembled, self.active, n_act, self.weights,
                                        self.normals, self.coef, n)
+        gauss_newton_add_diagonal(self.operator, matrix.pattern.diag, matrix.values)
         return energy
 
     def _free_step(self):
