@@ -7,15 +7,17 @@ Writes ``sim_speed.csv`` and ``sim_speed.md`` into OUT_DIR:
 - speed: ms per step (median over the steps of one run; wall clock and the
   process's CPU time, which other processes on a shared machine disturb less)
   for 32², 64², 128² grids of sample_data/hanging_sheet.yaml at one step per frame
-  (30 fps), for each preconditioner and PCG tolerance, with the mean PCG
-  iterations per step, the CPU cost per vertex per PCG iteration (linear scaling
-  means this stays flat), and two position errors at the last frame: against a
-  run with the same step solved to convergence (the error of one Newton step and
-  of the PCG tolerance) and against a fine-step reference (4 substeps per frame,
-  up to 3 Newton steps, PCG tolerance 1e-5; this adds implicit Euler's own error);
-- stability: the same scene at growing stretch stiffness and step size; a run is
-  stable when it finishes without a blow-up and its largest principal stretch stays
-  below 1.5.
+  (30 fps): Baraff–Witkin's linearised step (backward Euler, one Newton step) for
+  each preconditioner and PCG tolerance, and the default (BDF2, Newton to
+  ``solver.newton_tolerance``), with the mean PCG iterations per step, the CPU cost
+  per vertex per PCG iteration (linear scaling means this stays flat), and two
+  position errors at the last frame: against a run with the same step and
+  integrator solved to convergence (the error of stopping Newton early and of the
+  PCG tolerance) and against a fine-step reference (backward Euler, 4 substeps per
+  frame, up to 3 Newton steps, PCG tolerance 1e-5);
+- stability: the same scene at growing stretch stiffness and step size, with one
+  Newton step, four, and the default; a run is stable when it finishes without a
+  blow-up and its largest principal stretch stays below 1.5.
 
 All runs in one process, one after the other, so the ratios are comparable.
 """
@@ -31,12 +33,20 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 SCENE = ROOT / "sample_data" / "hanging_sheet.yaml"
 SIZES = (32, 64, 128)
-VARIANTS = (("multigrid", 1e-3), ("multigrid", 1e-2), ("jacobi", 1e-3))
+# Baraff–Witkin's linearised step (backward Euler, one Newton step: the default until BDF2)
+ONE_STEP = {"solver.integrator": "euler", "solver.newton_iterations": 1,
+            "solver.newton_tolerance": 1e-6}
+VARIANTS = (("multigrid", 1e-3, "one Newton step", ONE_STEP),
+            ("multigrid", 1e-2, "one Newton step", ONE_STEP),
+            ("jacobi", 1e-3, "one Newton step", ONE_STEP),
+            ("multigrid", 1e-2, "default (bdf2, Newton converged)", {}))
 FRAMES = 10  # 1/3 s of the fall
-CONVERGED = {"solver.newton_iterations": 10, "solver.newton_tolerance": 1e-5,
-             "solver.tolerance": 1e-6, "solver.max_iterations": 5000}
-REFERENCE = {"solver.substeps": 4, "solver.newton_iterations": 3, "solver.newton_tolerance": 1e-4,
-             "solver.tolerance": 1e-5, "solver.max_iterations": 2000}
+CONVERGED = {"solver.integrator": "euler", "solver.newton_iterations": 10,
+             "solver.newton_tolerance": 1e-5, "solver.tolerance": 1e-6,
+             "solver.max_iterations": 5000}
+REFERENCE = {"solver.integrator": "euler", "solver.substeps": 4, "solver.newton_iterations": 3,
+             "solver.newton_tolerance": 1e-4, "solver.tolerance": 1e-5,
+             "solver.max_iterations": 2000}
 STIFFNESSES = (1e3, 1e4, 1e5, 1e6, 1e7)
 STEPS = (1 / 30, 1 / 10, 1 / 3, 1.0)  # seconds per step (one step per frame)
 STABLE_STRETCH = 1.5
@@ -77,17 +87,20 @@ def speed_rows(sizes=SIZES, frames=FRAMES, variants=VARIANTS):
     for n in sizes:
         grid = {"mesh.grid.nx": n, "mesh.grid.ny": n}
         x_ref, *_ = _run({**grid, **REFERENCE}, frames)
-        x_conv, *_ = _run({**grid, **CONVERGED}, frames)
-        for preconditioner, tol in variants:
+        x_conv = {name: _run({**grid, **CONVERGED, "solver.integrator": name}, frames)[0]
+                  for name in ("euler", "bdf2")}
+        for preconditioner, tol, setting, extra in variants:
             x, seconds, its, stretch = _run({**grid, "solver.preconditioner": preconditioner,
-                                             "solver.tolerance": tol}, frames)
+                                             "solver.tolerance": tol, **extra}, frames)
             err = np.linalg.norm(x - x_ref, axis=1)
-            solver_err = np.linalg.norm(x - x_conv, axis=1)
+            solver_err = np.linalg.norm(x - x_conv[extra.get("solver.integrator", "bdf2")],
+                                        axis=1)
             wall = 1000 * statistics.median(s for s, _ in seconds)
             cpu = 1000 * statistics.median(c for _, c in seconds)
             mean_its = float(np.mean(its))
             rows.append({
-                "grid": f"{n}x{n}", "vertices": n * n, "preconditioner": preconditioner,
+                "grid": f"{n}x{n}", "vertices": n * n, "setting": setting,
+                "preconditioner": preconditioner,
                 "tolerance": tol, "ms_per_step_wall": round(wall, 1),
                 "ms_per_step_cpu": round(cpu, 1), "cg_iterations": round(mean_its, 1),
                 "max_cg_iterations": int(max(its)),
@@ -110,11 +123,12 @@ def stability_rows(n=32, frames=30):
         for h in STEPS:
             steps = max(2, round(frames / 30 / h))
             row = {"stretch_N_per_m": k, "step_s": round(h, 4)}
-            for newton in (1, 4):
-                out = _run({**grid, "material.stretch": k, "time.fps": 1 / h,
-                            "solver.newton_iterations": newton, "solver.newton_tolerance": 1e-4},
-                           steps)
-                tag = f"newton{newton}"
+            for tag, solver in (("newton1", {**ONE_STEP}),
+                                ("newton4", {"solver.integrator": "euler",
+                                             "solver.newton_iterations": 4,
+                                             "solver.newton_tolerance": 1e-4}),
+                                ("default", {})):
+                out = _run({**grid, "material.stretch": k, "time.fps": 1 / h, **solver}, steps)
                 row[f"stable_{tag}"] = out is not None and out[3] < STABLE_STRETCH
                 row[f"max_stretch_{tag}"] = round(out[3], 4) if out else float("nan")
                 row[f"mean_drop_m_{tag}"] = round(-float(out[0][:, 1].mean()), 3) if out else float("nan")
@@ -141,8 +155,8 @@ def run(out_dir="bench-results"):
     lines = ["# clothtool simulate: speed and stability", "",
              f"Scene: `{SCENE.relative_to(ROOT)}` (1 m sheet hanging from two corners), one step "
              f"per frame at 30 fps, {FRAMES} frames. Errors are the largest (max) and RMS vertex "
-             "distances at the last frame: `solver_error_mm` to the same step solved to "
-             "convergence (10 Newton steps, PCG tolerance 1e-6), `max_error_mm`/`rms_error_mm` "
+             "distances at the last frame: `solver_error_mm` to the same step and integrator "
+             "solved to convergence (10 Newton steps, PCG tolerance 1e-6), `max_error_mm`/`rms_error_mm` "
              "to a fine-step reference (4 substeps per frame, up to 3 Newton steps, PCG "
              "tolerance 1e-5), which adds implicit Euler's numerical damping at 1/30 s. "
              "ms_per_step_cpu is the process's CPU time (other processes on the shared "
@@ -152,7 +166,8 @@ def run(out_dir="bench-results"):
              f"blow-up and max stretch < {STABLE_STRETCH}). `mean_drop_m`: how far the sheet's "
              "mean height has fallen (a converged fine-step run falls about 0.45 m): with one "
              "Newton step, stiff cloth at large steps barely moves (the linearised step locks "
-             "the out-of-plane motion); more Newton steps recover part of it:",
+             "the out-of-plane motion); more Newton steps recover part of it, and the default "
+             "(BDF2, Newton to its tolerance) all of it:",
              "", _table(stability), "",
              "Largest stable step per stiffness (largest tried: 1 s): " + ", ".join(
                  f"{k:g} N/m: {v:g} s" for k, v in largest.items()) + ".",

@@ -60,12 +60,13 @@ scene:
 
 solver:
   method: implicit      # implicit (Baraff–Witkin), mass-spring, pbd, xpbd, projective, explicit (docs/solvers.md)
+  integrator: bdf2      # implicit, mass-spring: bdf2 (second order) or euler (backward Euler)
   substeps: 1           # solver steps per frame
-  tolerance: 1.0e-6     # relative residual of the linear solve
+  tolerance: 1.0e-6     # relative residual of the linear solve (the first Newton step's; later ones ask less)
   max_iterations: 500   # conjugate-gradient iterations per solve, at most
   preconditioner: multigrid  # multigrid (aggregation V-cycle) or jacobi (block Jacobi)
-  newton_iterations: 1  # Newton steps per solver step (1 = linearised implicit Euler)
-  newton_tolerance: 1.0e-6  # m/s, Newton stops when the largest velocity correction is below
+  newton_iterations: 20 # Newton steps per solver step, at most (1 = Baraff–Witkin's linearised step)
+  newton_tolerance: 0.04  # m/s, Newton stops when the largest velocity correction max|Δx|/h is below
   line_search: true     # backtracking line search on the Newton steps
   max_speed: 1000.0     # m/s, a faster vertex counts as a blow-up (exit code 3)
   iterations: 10        # pbd, xpbd, projective: constraint sweeps / local-global iterations per step

@@ -35,7 +35,8 @@ def test_defaults_and_relative_paths(tmp_path):
     """)
     cfg = load_config(path)
     assert cfg.material.stretch == 5000.0 and cfg.material.bend_model == "dihedral"
-    assert cfg.solver.newton_iterations == 1 and cfg.time.fps == 30
+    assert cfg.solver.integrator == "bdf2" and cfg.solver.newton_iterations == 20
+    assert cfg.solver.newton_tolerance == 0.04 and cfg.time.fps == 30
     assert cfg.output.dir == tmp_path / "frames"
     assert cfg.step == pytest.approx(1 / 30)
 

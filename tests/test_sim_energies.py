@@ -200,3 +200,18 @@ def test_degenerate_hinge_bends_nothing(hinge):
     assert dihedral_total_energy(x, np.array([[0, 1, 2, 3]]), rest, coef) == 0.0
     assert np.isnan(dihedral_angle_gradient(x[0], x[1], x[2], x[3], g))
     assert not g.any()
+
+
+@pytest.mark.parametrize("height, bends", [(0.5e-4, False), (2e-4, True)])
+def test_sliver_hinges_bend_nothing(height, bends):
+    """A hinge triangle lower than THIN = 1e-4 of its shared edge adds no energy or force."""
+    from clothtool.sim.bending import dihedral_assemble
+
+    x = np.array([[0, 0, 0], [1, 0, 0], [0.5, height, 0], [0.5, -0.6, 0.3]], dtype=float)
+    hinge = np.array([[0, 1, 2, 3]])
+    grad = np.zeros((4, 3))
+    values = np.zeros((16, 3, 3))
+    energy = dihedral_assemble(x, hinge, np.zeros(1), np.ones(1), np.arange(16)[None], grad,
+                               values)
+    assert energy == dihedral_total_energy(x, hinge, np.zeros(1), np.ones(1))
+    assert (energy > 0.1) == bends and grad.any() == bends and values.any() == bends

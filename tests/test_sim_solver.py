@@ -13,6 +13,7 @@ from clothtool.sim.api import simulate
 from clothtool.sim.blocksparse import (BlockJacobi, BlockMatrix, BlockPattern, ConstraintFilter,
                                       block_multiply, filtered_pcg)
 from clothtool.sim.config import load_config
+from clothtool.sim.methods import make_integrator
 from clothtool.sim.model import build_model
 from clothtool.sim.multigrid import Hierarchy
 from clothtool.sim.solvers.implicit import ImplicitEuler
@@ -63,7 +64,7 @@ def test_block_product_and_filtered_pcg_match_scipy():
     b = rng.normal(size=x.shape)
     sol = np.zeros_like(b)
     its, res = filtered_pcg(blocks, b, sol, ConstraintFilter(model.kind, np.zeros_like(b)), 1e-10,
-                            5000, BlockJacobi())
+                            5000, BlockJacobi(model.n_vertices))
     assert res <= 1e-10 and its > 0
     free = np.repeat(model.free, 3)
     expected = spla.spsolve(matrix[free][:, free].tocsc(), b.ravel()[free])
@@ -76,7 +77,7 @@ def test_block_product_and_filtered_pcg_match_scipy():
 
 def test_free_fall_is_exactly_implicit_euler(tmp_path):
     g = np.array([0.0, -9.81, 0.3])
-    cfg = config(scene={"gravity": g.tolist()}, solver={"tolerance": 1e-12},
+    cfg = config(scene={"gravity": g.tolist()}, solver={"tolerance": 1e-12, "integrator": "euler"},
                  material={"damping": 0.05})
     run(tmp_path, cfg)
     h = 1 / 30
@@ -89,6 +90,42 @@ def test_free_fall_is_exactly_implicit_euler(tmp_path):
         np.testing.assert_allclose(x[k].vertices, expected, rtol=0, atol=1e-10)
     rows = stats(tmp_path / "out")
     assert rows[-1]["kinetic"] == pytest.approx(0.5 * 0.2 * 1.0 * (v @ v), rel=1e-9)
+
+
+@pytest.mark.parametrize("method", ["implicit", "mass-spring"])
+def test_bdf2_integrates_free_fall_exactly(method):
+    """A quadratic trajectory is BDF2's exact solution: from an exact history (x, v at
+    t = −h in the State), every step lands on x0 + v0 t + g t²/2, damping or not (a rigid
+    translation stretches nothing)."""
+    g = np.array([0.3, -9.81, 0.5])
+    cfg = load_config(config(scene={"gravity": g.tolist()}, material={"damping": 0.05},
+                             solver={"method": method, "tolerance": 1e-12,
+                                     "newton_tolerance": 1e-9}))
+    model = build_model(cfg)
+    integ = make_integrator(model, cfg.solver, cfg.step)
+    h = cfg.step
+    v0 = np.array([0.2, 1.0, -0.4])
+    state = model.initial_state()
+    x0 = state.x.copy()
+    state.v[:] = v0
+    state.x_prev, state.v_prev = x0 - h * v0 + 0.5 * h * h * g, np.tile(v0 - h * g, (len(x0), 1))
+    for k in range(1, 11):
+        integ.step(state)
+        t = k * h
+        np.testing.assert_allclose(state.x, x0 + v0 * t + 0.5 * g * t * t, rtol=0, atol=1e-11)
+        np.testing.assert_allclose(state.v, np.tile(v0 + g * t, (len(x0), 1)), rtol=0, atol=1e-9)
+
+
+def test_bdf2_starts_with_a_backward_euler_step():
+    g = np.array([0.0, -9.81, 0.0])
+    cfg = load_config(config(solver={"tolerance": 1e-12, "newton_tolerance": 1e-9}))
+    model = build_model(cfg)
+    state = model.initial_state()
+    x0 = state.x.copy()
+    make_integrator(model, cfg.solver, cfg.step).step(state)
+    h = cfg.step
+    np.testing.assert_allclose(state.x, x0 + h * h * g, rtol=0, atol=1e-12)  # not h²g/2
+    np.testing.assert_array_equal(state.x_prev, x0)
 
 
 def test_pinned_vertices_never_move(tmp_path):
@@ -224,7 +261,7 @@ def test_multigrid_preconditioner_is_symmetric_positive_definite_on_the_free_spa
 def test_filtered_pcg_with_each_preconditioner_matches_a_direct_solve(preconditioner):
     model, blocks, matrix, kind, normal = constrained_system()
     constraints = ConstraintFilter(kind, normal)
-    mg = BlockJacobi()
+    mg = BlockJacobi(model.n_vertices)
     if preconditioner == "multigrid":
         mg = Hierarchy.for_mesh(model.pattern, model.faces)
     rng = np.random.default_rng(5)
@@ -239,7 +276,7 @@ def test_filtered_pcg_with_each_preconditioner_matches_a_direct_solve(preconditi
     np.testing.assert_allclose(sol.ravel(), expected, rtol=1e-6, atol=1e-10 * np.abs(expected).max())
     if preconditioner == "multigrid":
         jacobi_its, _ = filtered_pcg(blocks, b, np.zeros_like(b), constraints, 1e-10, 5000,
-                                     BlockJacobi())
+                                     BlockJacobi(model.n_vertices))
         assert its < jacobi_its
 
 
@@ -261,7 +298,7 @@ def test_sliding_constraint_keeps_the_prescribed_normal_motion():
     sol = np.zeros((n, 3))
     sol[held] = 0.01 * normal[held]  # prescribed normal motion
     its, res = filtered_pcg(blocks, b, sol, ConstraintFilter(kind, normal), 1e-10, 5000,
-                            BlockJacobi())
+                            BlockJacobi(model.n_vertices))
     assert res <= 1e-10
     np.testing.assert_allclose(np.einsum("ij,ij->i", sol[held], normal[held]), 0.01, rtol=1e-12)
     r = (b.ravel() - matrix @ sol.ravel()).reshape(n, 3)
@@ -293,16 +330,20 @@ def test_stiff_cloth_is_stable_at_one_step_per_frame(tmp_path):
     assert np.isfinite(last).all() and last[:, 1].min() > -1.6  # hangs, does not fly off
 
 
-def test_very_stiff_cloth_at_huge_steps_still_moves(tmp_path):
+@pytest.mark.parametrize("solver, stretch", [
+    ({"integrator": "euler", "newton_iterations": 1}, 1.01),  # the linearised step
+    ({}, 1.06),  # the default: Newton stops at 0.04 m/s, i.e. 4 cm at h = 1 s
+])
+def test_very_stiff_cloth_at_huge_steps_still_moves(tmp_path, solver, stretch):
     """The first Newton step from a flat sheet overshoots (no out-of-plane stiffness at
     rest); the line search must shrink it until the energy drops, not give up."""
     cfg = config(mesh={"grid": {"nx": 12, "ny": 12, "plane": "xz"}},
                  material={"stretch": 1e7}, scene={"pins": ["top_corners"]},
-                 time={"fps": 1, "frames": 2})
+                 time={"fps": 1, "frames": 2}, solver=solver)
     run(tmp_path, cfg)
     rows = stats(tmp_path / "out")
     assert rows[-1]["gravity"] < rows[0]["gravity"] - 1e-4  # it fell a little
-    assert rows[-1]["max_stretch"] < 1.01
+    assert rows[-1]["max_stretch"] < stretch
 
 
 def test_blow_up_names_the_frame_and_keeps_earlier_frames(tmp_path):

@@ -32,8 +32,8 @@ class SimulationResult:
         if self.step_s:
             timing += (f", then {1000.0 * statistics.median(self.step_s):.1f} ms/step median, "
                        f"{1000.0 * statistics.fmean(self.step_s):.1f} mean")
-        work = [f"{self.cg_iterations / steps:.1f} CG iterations/step" if self.newton_iterations
-                else "", f"{self.sweeps / steps:.0f} sweeps/step" if self.sweeps else "",
+        work = [f"{self.newton_iterations / steps:.1f} Newton, {self.cg_iterations / steps:.1f} "
+                f"CG iterations/step" if self.newton_iterations else "", f"{self.sweeps / steps:.0f} sweeps/step" if self.sweeps else "",
                 f"{self.substeps / steps:.0f} internal steps/step" if self.substeps else ""]
         return (f"{self.frames_written} frames in {self.output_dir}/ ({self.steps} steps; {timing}; "
                 + ", ".join(w for w in work if w) + (", " if any(work) else "")

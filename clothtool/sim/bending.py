@@ -19,14 +19,20 @@ its Hessian 2c w wᵀ ⊗ I₃ is constant and PSD.
 Degenerate hinges: where the shared edge has zero length or a triangle's height is
 below geometry.HINGE_TOL of the edge (‖N‖ ≤ HINGE_TOL·‖e‖², e.g. cloth pushed onto a collider
 or collapsed onto a line), θ is undefined; θ is then NaN, ∇θ = 0, and the hinge adds
-no energy, force or stiffness until it opens again.
+no energy, force or stiffness until it opens again. The simulator does the same for
+slivers, triangles whose height is at most ``THIN`` (1e-4) of the shared edge: there
+∇θ ∝ 1/height, and the Gauss–Newton blocks (up to 10³³ for a sheet released flattened
+onto a line) would swamp the system matrix in rounding.
 """
 
 import numpy as np
 from numba import njit
 
-from clothtool.geometry import dihedral_angle, dihedral_angle_gradient, dihedral_angle_hessian
+from clothtool.geometry import (dihedral_angle, dihedral_angle_gradient, dihedral_angle_hessian,
+                                hinge_normals)
 from clothtool.vec3 import cross, dot, load, scale, sub
+
+THIN = 1e-4  # a hinge triangle this much lower than the shared edge is a sliver: no bending
 
 
 @njit(cache=True)
@@ -53,11 +59,21 @@ def dihedral_element(xi, xj, xk, xl, theta_rest, coef, project, grad, hess):
 
 
 @njit(cache=True)
+def _sliver(xi, xj, xk, xl):
+    """A hinge with a triangle whose height is at most THIN times the shared edge."""
+    e, nk, nl = hinge_normals(xi, xj, xk, xl)
+    limit = THIN * THIN * dot(e, e) * dot(e, e)
+    return dot(nk, nk) <= limit or dot(nl, nl) <= limit
+
+
+@njit(cache=True)
 def _hinge_gradient(x, hinge, h, theta_rest, g):
-    """θ − θ̄ of hinge h, with ∇θ (12,) in g; NaN when the hinge is degenerate."""
-    theta = dihedral_angle_gradient(load(x, hinge[h, 0]), load(x, hinge[h, 1]),
-                                    load(x, hinge[h, 2]), load(x, hinge[h, 3]), g)
-    return theta - theta_rest[h]
+    """θ − θ̄ of hinge h, with ∇θ (12,) in g; NaN for a degenerate or sliver hinge."""
+    xi, xj = load(x, hinge[h, 0]), load(x, hinge[h, 1])
+    xk, xl = load(x, hinge[h, 2]), load(x, hinge[h, 3])
+    if _sliver(xi, xj, xk, xl):
+        return np.nan
+    return dihedral_angle_gradient(xi, xj, xk, xl, g) - theta_rest[h]
 
 
 @njit(cache=True)
@@ -109,8 +125,12 @@ def dihedral_gradient(x, hinge, theta_rest, coef, grad, v, damp, out):
 
 @njit(cache=True)
 def dihedral_total_energy(x, hinge, theta_rest, coef):
+    """W_bend(x) = Σ c (θ − θ̄)² over the hinges that are neither degenerate nor slivers."""
     total = 0.0
     for h in range(hinge.shape[0]):
+        if _sliver(load(x, hinge[h, 0]), load(x, hinge[h, 1]), load(x, hinge[h, 2]),
+                   load(x, hinge[h, 3])):
+            continue
         d = dihedral_angle(x, hinge[h]) - theta_rest[h]
         if d == d:  # NaN: degenerate hinge, no energy
             total += coef[h] * d * d

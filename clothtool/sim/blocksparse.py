@@ -98,7 +98,7 @@ class BlockMatrix:
 
     def add_diagonal(self, d):
         """A += diag(d_v I₃) for a per-vertex scalar d (N,)."""
-        self.values[self.pattern.diag] += d[:, None, None] * np.eye(3)
+        add_block_diagonal(self.values, self.pattern.diag, d)
 
     def to_scipy(self):
         import scipy.sparse as sps
@@ -119,12 +119,26 @@ class ConstraintFilter:
 
 
 class BlockJacobi:
-    """The block-Jacobi preconditioner (inverses of the 3×3 diagonal blocks, set up per solve)."""
+    """The block-Jacobi preconditioner: the inverses of the 3×3 diagonal blocks."""
 
     arrays = NO_MULTIGRID
 
+    def __init__(self, n_vertices):
+        self.inverse = np.zeros((n_vertices, 3, 3))
+
     def setup(self, matrix, constraints):
-        """Nothing to set up ahead of the solve (the inverses are taken inside it)."""
+        """Invert the diagonal blocks of a :class:`BlockMatrix` (pinned vertices: zero)."""
+        block_jacobi(matrix.values, matrix.pattern.diag, constraints.kind, self.inverse)
+
+
+@njit(cache=True)
+def add_block_diagonal(values, diag, d):
+    """values[diag[v]] += d[v] I₃."""
+    for v in range(diag.shape[0]):
+        b = values[diag[v]]
+        b[0, 0] += d[v]
+        b[1, 1] += d[v]
+        b[2, 2] += d[v]
 
 
 @njit(cache=True)
@@ -178,14 +192,13 @@ def _apply_inverse(inv, r, z):
 
 
 @njit(cache=True)
-def block_jacobi(values, diag, kind):
-    """Inverses of the diagonal blocks (zero for pinned vertices)."""
-    n = diag.shape[0]
-    inv = np.zeros((n, 3, 3))
-    for i in range(n):
+def block_jacobi(values, diag, kind, inv):
+    """inv = inverses of the diagonal blocks (zero for pinned vertices)."""
+    for i in range(diag.shape[0]):
         if kind[i] != PINNED:
             inverse3(values[diag[i]], inv[i])
-    return inv
+        else:
+            inv[i] = 0.0
 
 
 @njit(cache=True)
@@ -231,15 +244,16 @@ def filtered_pcg(matrix, b, x, constraints, tol, max_iter, preconditioner, extra
 
     ``matrix``: a :class:`BlockMatrix`; ``constraints``: a :class:`ConstraintFilter`
     (S); ``preconditioner``: :class:`BlockJacobi` or a
-    :class:`~clothtool.sim.multigrid.Hierarchy`; ``extra``: off-diagonal contact blocks
-    applied matrix-free (:func:`~clothtool.contact.barrier.solve_operator`), whose diagonal
-    blocks are already in the matrix. Stops when the true relative residual
-    ‖S(b − Ax)‖ / ‖S b‖ ≤ ``tol`` or after ``max_iter`` iterations.
-    Returns (iterations, relative true residual).
+    :class:`~clothtool.sim.multigrid.Hierarchy`, set up here for this matrix and filter;
+    ``extra``: off-diagonal contact blocks applied matrix-free
+    (:func:`~clothtool.contact.barrier.solve_operator`), whose diagonal blocks are already in
+    the matrix. Stops when the true relative residual ‖S(b − Ax)‖ / ‖S b‖ ≤ ``tol`` or after
+    ``max_iter`` iterations. Returns (iterations, relative true residual).
     """
-    return filtered_pcg_arrays(matrix.pattern.row_ptr, matrix.pattern.col, matrix.values,
-                               matrix.pattern.diag, b, x, constraints.kind, constraints.normal,
-                               constraints.active, tol, max_iter, preconditioner.arrays, extra)
+    preconditioner.setup(matrix, constraints)
+    return filtered_pcg_arrays(matrix.pattern.row_ptr, matrix.pattern.col, matrix.values, b, x,
+                               constraints.kind, constraints.normal, constraints.active, tol,
+                               max_iter, preconditioner.inverse, preconditioner.arrays, extra)
 
 
 @njit(cache=True)
@@ -251,15 +265,13 @@ def _residual_with(row_ptr, col, values, extra, b, x, r):
 
 
 @njit(cache=True)
-def filtered_pcg_arrays(row_ptr, col, values, diag, b, x, kind, normal, constrained, tol,
-                        max_iter, mg, extra):
-    """:func:`filtered_pcg` on plain arrays: ``constrained`` False skips the filter; ``mg``
-    the arrays of a multigrid hierarchy, or ``NO_MULTIGRID`` for block Jacobi; ``extra``
-    the matrix-free contact blocks (``NO_OPERATOR`` for none)."""
+def filtered_pcg_arrays(row_ptr, col, values, b, x, kind, normal, constrained, tol, max_iter,
+                        inv, mg, extra):
+    """:func:`filtered_pcg` on plain arrays: ``constrained`` False skips the filter; ``inv``
+    the block-Jacobi inverses (:func:`block_jacobi`) and ``mg`` ``NO_MULTIGRID``, or ``mg``
+    the arrays of a multigrid hierarchy after ``setup_levels``; ``extra`` the matrix-free
+    contact blocks (``NO_OPERATOR`` for none)."""
     n = b.shape[0]
-    inv = block_jacobi(values, diag, kind)
-    if len(mg[0]) > 1:
-        setup_levels(values, kind, normal, constrained, mg)
     sb = b.copy()
     if constrained:
         apply_filter(sb, kind, normal)

@@ -9,7 +9,8 @@ projection after the step cannot do: pushing one vertex of stiff cloth back by a
 few centimetres strains its triangles by tens of percent and feeds energy in.
 
 After the solve, the constraint force λ = n·(b − AΔx) (N) is the normal force
-of the contact. Coulomb friction removes up to μλh/m of the tangential velocity.
+of the contact. Coulomb friction removes up to μλĥ/m of the tangential velocity (ĥ the
+integrator's effective step: h for backward Euler, 2h/3 for BDF2).
 A vertex whose λ < 0 (the cloth pulls it off the surface) is released at the
 next step. Finally every free vertex still closer than ``margin`` (contacts the
 prediction missed) is projected out along n and loses its inward normal

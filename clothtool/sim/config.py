@@ -30,6 +30,7 @@ BEND_MODELS = ("dihedral", "quadratic")
 METHODS = tuple(methods.METHODS)
 PRECONDITIONERS = ("jacobi", "multigrid")
 PBD_VARIANTS = ("gauss-seidel", "jacobi")
+INTEGRATORS = ("bdf2", "euler")
 
 
 # ---------------------------------------------------------------------------- schema
@@ -285,12 +286,16 @@ class Scene:
 
 @dataclass(frozen=True)
 class Solver:
-    """Implicit Euler: ``newton_iterations`` Newton steps per solver step, each a PCG solve.
+    """The time step and its solve.
 
-    ``tolerance`` is the PCG stopping test on the true relative residual;
-    ``preconditioner`` is block Jacobi or an aggregation multigrid V-cycle;
-    Newton stops early when the largest velocity correction is below
-    ``newton_tolerance`` (m/s). A step whose speed exceeds ``max_speed`` (m/s)
+    ``integrator``: ``bdf2`` (second order, the default) or ``euler`` (backward Euler),
+    each the minimisation of its incremental potential by Newton's method: at most
+    ``newton_iterations`` Newton steps per solver step, stopping when the largest
+    velocity correction max|Δx|/h is below ``newton_tolerance`` (m/s); each Newton
+    step is a PCG solve whose relative residual ``tolerance`` is the finest it asks
+    for (later Newton steps ask for less: Eisenstat–Walker); ``preconditioner`` is
+    block Jacobi or an aggregation multigrid V-cycle. ``newton_iterations: 1`` is
+    Baraff–Witkin's linearised step. A step whose speed exceeds ``max_speed`` (m/s)
     counts as a blow-up.
 
     ``method`` picks the solver (``clothtool.sim.solvers``, ``docs/solvers.md``):
@@ -303,12 +308,13 @@ class Solver:
     """
 
     method: str = _field("implicit", _choice(METHODS))
+    integrator: str = _field("bdf2", _choice(INTEGRATORS))
     substeps: int = _field(1, _integer(minimum=1))
     tolerance: float = _field(1.0e-6, _number(minimum=0, exclusive=True, maximum=1))
     max_iterations: int = _field(500, _integer(minimum=1))
     preconditioner: str = _field("multigrid", _choice(PRECONDITIONERS))
-    newton_iterations: int = _field(1, _integer(minimum=1))
-    newton_tolerance: float = _field(1.0e-6, _number(minimum=0))
+    newton_iterations: int = _field(20, _integer(minimum=1))
+    newton_tolerance: float = _field(0.04, _number(minimum=0))
     line_search: bool = _field(True, _flag)
     max_speed: float = _field(1000.0, _number(minimum=0, exclusive=True))
     # the alternative methods (clothtool.sim.solvers, docs/solvers.md); ignored by the others
@@ -443,7 +449,9 @@ def _build_config(raw, base):
         sections[name] = _build_section(cls, value, name, base)
     config = Config(**sections)
     _check_contact_scene(config.scene)
-    methods.check_supported(config)
+    given = {f"{name}.{key}" for name, section in raw.items() if isinstance(section, dict)
+             for key in section}
+    methods.check_supported(config, given)
     return config
 
 

@@ -333,8 +333,9 @@ class BarrierContact:
             return 0.0
         return _max_norm(self.target - self.y[self.scene.n_cloth:])
 
-    def finish(self, state):
-        """After the step: friction on state.v, and the contacts and smallest distance."""
+    def finish(self, state, h_eff):
+        """After the step: friction on state.v (ĥ the integrator's velocity step), and the
+        contacts and smallest distance."""
         sc = self.scene
         n = sc.n_cloth
         self.y[:n] = state.x
@@ -346,7 +347,7 @@ class BarrierContact:
             if self.target is not None:  # the colliders' own velocity over the step
                 v[n:] = (self.target - self.start) / self.h
             contact_friction(v, self.inv_mass, self.assembled, self.active, n_act, self.weights,
-                             self.normals, self.force, sc.obstacle, sc.mu, sc.mu_self, self.h)
+                             self.normals, self.force, sc.obstacle, sc.mu, sc.mu_self, h_eff)
             state.v = v[:n].copy()
 
     def check_frame(self, x, t, frame, out_dir):

@@ -32,7 +32,8 @@ from clothtool.errors import InputError
 FRICTION = "friction"  # Coulomb friction on colliders (scene.colliders[i].*.friction > 0)
 CONTACT = "contact"  # mesh colliders and self-collision: barrier contact, intersection-free
 MOVING_PINS = "moving pins"  # scene.pins entries with rotate or translate
-FEATURES = (FRICTION, CONTACT, MOVING_PINS)
+BDF2 = "bdf2"  # solver.integrator: bdf2 (the default; refused only when a config sets it)
+FEATURES = (FRICTION, CONTACT, MOVING_PINS, BDF2)
 
 
 @dataclass(frozen=True)
@@ -49,10 +50,10 @@ class Method:
 
 METHODS = {m.name: m for m in (
     Method("implicit", "clothtool.sim.solvers.implicit:ImplicitEuler",
-           frozenset({FRICTION, CONTACT, MOVING_PINS}),
-           "Baraff–Witkin implicit Euler, Newton + filtered PCG"),
+           frozenset({FRICTION, CONTACT, MOVING_PINS, BDF2}),
+           "finite-element cloth, BDF2 or backward Euler, Newton + filtered PCG"),
     Method("mass-spring", "clothtool.sim.solvers.mass_spring:MassSpringImplicit",
-           summary="implicit Euler on a spring network"),
+           frozenset({BDF2}), "spring network, BDF2 or backward Euler, Newton + PCG"),
     Method("pbd", "clothtool.sim.solvers.pbd:PositionBased", summary="Position Based Dynamics"),
     Method("xpbd", "clothtool.sim.solvers.xpbd:ExtendedPositionBased", summary="extended PBD"),
     Method("projective", "clothtool.sim.solvers.projective:ProjectiveDynamics",
@@ -62,10 +63,13 @@ METHODS = {m.name: m for m in (
 )}
 
 
-def requested_features(config):
+def requested_features(config, given=()):
     """(feature, config key) for each optional feature a :class:`~clothtool.sim.config.Config`
-    asks for."""
+    asks for; ``given``: the dotted keys the config file sets (a default ``bdf2`` is not a
+    request: the methods without it step by their own first-order scheme)."""
     out = []
+    if config.solver.integrator == "bdf2" and "solver.integrator" in given:
+        out.append((BDF2, "solver.integrator: bdf2"))
     for i, collider in enumerate(config.scene.colliders):
         kind = {"Sphere": "sphere", "Plane": "plane"}.get(type(collider).__name__, "mesh")
         if kind == "mesh":
@@ -81,10 +85,10 @@ def requested_features(config):
     return out
 
 
-def check_supported(config):
+def check_supported(config, given=()):
     """Raise InputError for the first feature of ``config`` its method does not support."""
     method = METHODS[config.solver.method]
-    for feature, key in requested_features(config):
+    for feature, key in requested_features(config, given):
         if feature not in method.supports:
             raise InputError(f"solver.method: {method.name!r} does not support {key} "
                              f"(supported by: {', '.join(m.name for m in METHODS.values() if feature in m.supports)})")

@@ -30,6 +30,7 @@ from clothtool.vec3 import inverse3
 
 COARSEST = 48  # nodes at which the hierarchy stops (dense Cholesky of ≤ 3·48 unknowns)
 OMEGA = 0.6  # Jacobi smoothing weight (λmax(D⁻¹A) ≤ 2 for these matrices)
+PIVOT = 1e-12  # smallest Cholesky pivot relative to its diagonal entry
 
 
 @njit(cache=True)
@@ -133,6 +134,7 @@ class Hierarchy:
         self.r = np.zeros((self.node_off[-1], 3))
         self.z = np.zeros((self.node_off[-1], 3))
         self.t = np.zeros((self.node_off[-1], 3))
+        self.inverse = np.zeros((0, 3, 3))  # the V-cycle has its own diagonal inverses
         # the tuple the numba kernels take (NO_MULTIGRID has the same layout, no levels)
         self.arrays = (self.node_off, self.block_off, self.row_ptr, self.row_off, self.col,
                        self.agg, self.slot_map, self.values, self.diag_inv, self.coarsest, self.r,
@@ -152,7 +154,7 @@ def make_preconditioner(name, pattern, faces):
 
     if name == "multigrid" and pattern.n > COARSEST:
         return Hierarchy.for_mesh(pattern, faces)
-    return BlockJacobi()
+    return BlockJacobi(pattern.n)
 
 
 @njit(cache=True)
@@ -232,12 +234,19 @@ def setup_levels(fine, kind, normal, constrained, mg):
 
 @njit(cache=True)
 def _cholesky(a):
-    """In-place Cholesky factor (lower triangle) of a symmetric positive definite matrix."""
+    """In-place Cholesky factor (lower triangle) of a symmetric positive definite matrix.
+
+    A pivot that rounding has made non-positive (entries spanning 30 orders of magnitude,
+    as near-degenerate hinges give) is replaced by the matrix's own diagonal entry: the
+    factor is then that of A + E with E ≥ 0 diagonal, still a valid SPD preconditioner."""
     n = a.shape[0]
     for j in range(n):
-        d = a[j, j]
+        diagonal = a[j, j]
+        d = diagonal
         for k in range(j):
             d -= a[j, k] * a[j, k]
+        if not d > PIVOT * diagonal:
+            d = diagonal if diagonal > 0.0 else 1.0
         d = np.sqrt(d)
         a[j, j] = d
         for i in range(j + 1, n):

@@ -1,4 +1,4 @@
-"""What changes during a run: positions, velocities, time, and the contact memory.
+"""What changes during a run: positions, velocities, time, the previous step, the contact memory.
 
 A :class:`State` is everything an integrator reads from one step to the next, so a
 copy of it taken between steps resumes the run exactly (same model, same config).
@@ -16,6 +16,9 @@ class State:
     time: float = 0.0
     # contact memory: vertices whose contact pulled at the last step are released at the next
     released: np.ndarray = field(default=None)  # (N,) bool
+    # positions and velocities before the last step (BDF2's second history point); None at start
+    x_prev: np.ndarray | None = None
+    v_prev: np.ndarray | None = None
 
     def __post_init__(self):
         if self.released is None:
