@@ -192,14 +192,21 @@ def box_pairs(alo, ahi, elem_a, blo, bhi, elem_b, r, obstacle, self_contact, sam
 
 @njit(cache=True)
 def _motion_bound(dx, rho, st, edge_edge):
-    """l = max (‖dx‖ + ρ) over one side + max over the other: the pair's distance at x
-    changes by at most l for vertices anywhere within ρ of x + t dx, t ∈ [0, 1]."""
-    m = np.zeros(4)
+    """How much the pair's distance at x can change for vertices anywhere within ρ of their
+    motion x + t dx, t ∈ [0, 1]: the relative displacement bound of additive CCD (the
+    displacements less their mean, the largest on each side added; a common translation
+    does not count), plus the largest ρ on each side."""
+    m0 = 0.25 * (dx[st[0], 0] + dx[st[1], 0] + dx[st[2], 0] + dx[st[3], 0])
+    m1 = 0.25 * (dx[st[0], 1] + dx[st[1], 1] + dx[st[2], 1] + dx[st[3], 1])
+    m2 = 0.25 * (dx[st[0], 2] + dx[st[1], 2] + dx[st[2], 2] + dx[st[3], 2])
+    a = b = ra = rb = 0.0
     for j in range(4):
-        m[j] = np.sqrt(dx[st[j], 0] ** 2 + dx[st[j], 1] ** 2 + dx[st[j], 2] ** 2) + rho[st[j]]
-    if edge_edge:
-        return max(m[0], m[1]) + max(m[2], m[3])
-    return m[0] + max(m[1], m[2], m[3])
+        q = (dx[st[j], 0] - m0) ** 2 + (dx[st[j], 1] - m1) ** 2 + (dx[st[j], 2] - m2) ** 2
+        if j == 0 or (edge_edge and j == 1):
+            a, ra = max(a, q), max(ra, rho[st[j]])
+        else:
+            b, rb = max(b, q), max(rb, rho[st[j]])
+    return np.sqrt(a) + np.sqrt(b) + ra + rb
 
 
 @njit(cache=True)

@@ -14,6 +14,7 @@ import numpy as np
 from numba import njit
 
 from clothtool.contact.barrier import pair_distance, pair_thickness
+from clothtool.contact.broadphase import _motion_bound
 
 ETA = 0.9
 MAX_ITERATIONS = 2000
@@ -87,20 +88,18 @@ def collision_free_step(x, dx, stencils, n_pt, obstacle, xi_self, xi_obstacle, t
 @njit(cache=True)
 def near_pairs(x, dx, stencils, n_pt, reach):
     """(stencils, count of vertex–triangle ones) of the candidates that can come within
-    ``reach`` somewhere on x + [0, 1] dx: distance at x minus the motion bound (the sum of
-    the largest displacement on each side) below reach."""
+    ``reach`` somewhere on x + [0, 1] dx: distance at x minus the relative motion bound
+    (``broadphase._motion_bound``; a common translation of the pair does not count) below
+    reach."""
     w = np.empty(4)
+    no_reach = np.zeros(x.shape[0])
     keep = np.empty(stencils.shape[0], dtype=np.bool_)
     n_near_pt = 0
     for k in range(stencils.shape[0]):
         st = stencils[k]
         ee = k >= n_pt
         d = np.sqrt(pair_distance(x, st, ee, w))
-        m = np.empty(4)
-        for j in range(4):
-            m[j] = np.sqrt(dx[st[j], 0] ** 2 + dx[st[j], 1] ** 2 + dx[st[j], 2] ** 2)
-        bound = (max(m[0], m[1]) + max(m[2], m[3])) if ee else (m[0] + max(m[1], m[2], m[3]))
-        keep[k] = d - bound < reach
+        keep[k] = d - _motion_bound(dx, no_reach, st, ee) < reach
         if keep[k] and not ee:
             n_near_pt += 1
     return stencils[keep].copy(), n_near_pt

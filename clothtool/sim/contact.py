@@ -112,6 +112,14 @@ def _within(y, dy, ref, rho):
 
 
 @njit(cache=True)
+def _mean_norm(dy):
+    total = 0.0
+    for i in range(dy.shape[0]):
+        total += np.sqrt(dy[i, 0] ** 2 + dy[i, 1] ** 2 + dy[i, 2] ** 2)
+    return total / max(dy.shape[0], 1)
+
+
+@njit(cache=True)
 def _radii(dy, floor, factor):
     """ρ_v = max(floor, factor ‖dy_v‖)."""
     rho = np.empty(dy.shape[0])
@@ -189,15 +197,23 @@ class BarrierContact:
     def _ensure(self, y, dy):
         """Make the candidates hold every pair within reach on y → y + dy. They are the
         pairs near a reference configuration for vertices within ρ_v of it, and are kept
-        while the motions stay so; else ref ← y, ρ_v = max(DELTA, 1.5 ‖dy_v‖)."""
+        while the motions stay so; else ref ← y, ρ_v = max(DELTA, 1.5 ‖dy_v‖) — or, when
+        the vertices move more than 2·DELTA on average, the pairs of this motion's swept
+        boxes (for its line search and the assembly after it)."""
         if self._ref is not None and _within(y, dy, self._ref, self._rho):
             return
         sc = self.scene
-        self._ref = y.copy()
-        self._rho = _radii(dy, DELTA, 1.5)
-        self.stencils, self.n_pt = contact_stencils(
-            y, np.zeros_like(y), self._rho, sc.faces, sc.edges, sc.obstacle, sc.self_contact,
-            self.reach)
+        if _mean_norm(dy) > 2.0 * DELTA:  # the whole scene moves fast: this motion's pairs
+            self._ref = None
+            self.stencils, self.n_pt = contact_stencils(
+                y, dy, np.zeros(len(y)), sc.faces, sc.edges, sc.obstacle, sc.self_contact,
+                self.reach)
+        else:
+            self._ref = y.copy()
+            self._rho = _radii(dy, DELTA, 1.5)
+            self.stencils, self.n_pt = contact_stencils(
+                y, np.zeros_like(y), self._rho, sc.faces, sc.edges, sc.obstacle,
+                sc.self_contact, self.reach)
         k = len(self.stencils)
         if len(self.active) < k:
             self.active = np.zeros(k, np.int64)
