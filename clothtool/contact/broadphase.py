@@ -191,7 +191,7 @@ def box_pairs(alo, ahi, elem_a, blo, bhi, elem_b, r, obstacle, self_contact, sam
 
 
 @njit(cache=True)
-def _motion_bound(dx, rho, st, edge_edge):
+def motion_bound(dx, rho, st, edge_edge):
     """How much the pair's distance at x can change for vertices anywhere within ρ of their
     motion x + t dx, t ∈ [0, 1]: the relative displacement bound of additive CCD (the
     displacements less their mean, the largest on each side added; a common translation
@@ -216,7 +216,7 @@ def contact_stencils(x, dx, rho, faces, edges, obstacle, self_contact, r):
 
     Holds every allowed pair that comes closer than r while each vertex v is within
     rho_v (N,) of its motion x_v + t dx_v, t ∈ [0, 1]: the pairs of overlapping boxes, less
-    those whose distance at x exceeds r plus their motion bound (see ``_motion_bound``).
+    those whose distance at x exceeds r plus their motion bound (see ``motion_bound``).
     """
     vlo, vhi = vertex_boxes(x, dx, rho)
     flo, fhi = element_boxes(vlo, vhi, faces)
@@ -232,7 +232,7 @@ def contact_stencils(x, dx, rho, faces, edges, obstacle, self_contact, r):
         st = stencils[n]
         st[0], st[1], st[2], st[3] = vf[k, 0], faces[f, 0], faces[f, 1], faces[f, 2]
         d = np.sqrt(point_triangle_weights(x, st[0], st[1], st[2], st[3], w))
-        if d - _motion_bound(dx, rho, st, False) < r:
+        if d - motion_bound(dx, rho, st, False) < r:
             n += 1
     n_pt = n
     for k in range(ee.shape[0]):
@@ -240,7 +240,7 @@ def contact_stencils(x, dx, rho, faces, edges, obstacle, self_contact, r):
         st[0], st[1] = edges[ee[k, 0], 0], edges[ee[k, 0], 1]
         st[2], st[3] = edges[ee[k, 1], 0], edges[ee[k, 1], 1]
         d = np.sqrt(edge_edge_weights(x, st[0], st[1], st[2], st[3], w))
-        if d - _motion_bound(dx, rho, st, True) < r:
+        if d - motion_bound(dx, rho, st, True) < r:
             n += 1
     return stencils[:n].copy(), n_pt
 

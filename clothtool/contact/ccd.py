@@ -14,7 +14,7 @@ import numpy as np
 from numba import njit
 
 from clothtool.contact.barrier import pair_distance, pair_thickness
-from clothtool.contact.broadphase import _motion_bound
+from clothtool.contact.broadphase import motion_bound
 
 ETA = 0.9
 MAX_ITERATIONS = 2000
@@ -89,8 +89,8 @@ def collision_free_step(x, dx, stencils, n_pt, obstacle, xi_self, xi_obstacle, t
 def near_pairs(x, dx, stencils, n_pt, reach):
     """(stencils, count of vertex–triangle ones) of the candidates that can come within
     ``reach`` somewhere on x + [0, 1] dx: distance at x minus the relative motion bound
-    (``broadphase._motion_bound``; a common translation of the pair does not count) below
-    reach."""
+    (:func:`~clothtool.contact.broadphase.motion_bound`; a common translation of the pair
+    does not count) below reach."""
     w = np.empty(4)
     no_reach = np.zeros(x.shape[0])
     keep = np.empty(stencils.shape[0], dtype=np.bool_)
@@ -99,7 +99,7 @@ def near_pairs(x, dx, stencils, n_pt, reach):
         st = stencils[k]
         ee = k >= n_pt
         d = np.sqrt(pair_distance(x, st, ee, w))
-        keep[k] = d - _motion_bound(dx, no_reach, st, ee) < reach
+        keep[k] = d - motion_bound(dx, no_reach, st, ee) < reach
         if keep[k] and not ee:
             n_near_pt += 1
     return stencils[keep].copy(), n_near_pt
