@@ -9,15 +9,13 @@ for float32 and float64 storage of clothtool's results.
 """
 
 import pathlib
-import statistics
-import time
 
 import numba
 import numpy as np
 
-from benchmarks.common import markdown_table, write_csv
-from clothtool.analysis.deformation2d import (FIELDS, allocate_fields, allocate_rest,
-                                              deformation_fields, reference_from_positions)
+from benchmarks.common import markdown_table, median_seconds, write_csv
+from clothtool.analysis.deformation2d import (KernelPlan, deformation_fields,
+                                              reference_from_positions)
 
 M = 100_000
 
@@ -90,19 +88,10 @@ def numpy_svd(F):
 
 def clothtool_kernel(x_ref, x_def, faces, dtype):
     ref = reference_from_positions(x_ref, faces, 1e-8)
-    out = allocate_fields(len(faces), ("stretch", "R", "U"), dtype)
-    deformation_fields(x_def, faces, *ref, 1e-8, *(out[n] for n in FIELDS), *allocate_rest(0))
-    return out["stretch"], out["R"], out["U"]
-
-
-def median_seconds(fn, repeat=7):
-    fn()
-    times = []
-    for _ in range(repeat):
-        t = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t)
-    return statistics.median(times)
+    plan = KernelPlan(len(faces), ("stretch", "R", "U"))
+    out, out_flags, views = plan.allocate(dtype)
+    deformation_fields(x_def, faces, *ref, 1e-8, plan.starts, plan.needs, out, out_flags)
+    return views["stretch"], views["R"], views["U"]
 
 
 def rel_error(value, ref):

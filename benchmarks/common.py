@@ -57,3 +57,14 @@ def write_csv(path, rows, columns):
         w = csv.DictWriter(fh, fieldnames=columns, extrasaction="ignore")
         w.writeheader()
         w.writerows(rows)
+
+
+def median_seconds(fn, repeat=7):
+    """Median wall time of ``repeat`` calls of ``fn()`` after one untimed call (warm-up, compile)."""
+    fn()
+    times = []
+    for _ in range(repeat):
+        started = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - started)
+    return statistics.median(times)

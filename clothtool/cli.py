@@ -2,7 +2,7 @@
 
 Every command body imports its heavy modules (numba, h5py) lazily so that
 ``clothtool --help`` starts fast. Errors become one line on stderr and an exit
-code (spec §6): 0 done, 2 bad input or usage, 3 numerical failure, 130 interrupted.
+code: 0 done, 2 bad input or usage, 3 numerical failure, 130 interrupted.
 """
 
 import sys
@@ -17,7 +17,13 @@ except ImportError:  # pragma: no cover
         pass
 
 from clothtool import __version__, interrupt
-from clothtool.errors import ClothtoolError
+from clothtool.errors import ClothtoolError, InputError
+
+OPTIONS = {"fields": "--fields", "dtype": "--dtype", "compression": "--compression",
+           "pairs": "--pairs", "reference": "--reference", "uv_scale": "--uv-scale",
+           "vertex_average": "--vertex-average", "kabsch": "--kabsch", "pair": "--pair",
+           "field": "--field", "component": "--component", "color_range": "--range"}
+"""Library keyword argument → the option that sets it, for the messages of InputError."""
 
 EXIT_CODES_HELP = """\b
 Exit codes: 0 done, 2 bad input, usage or unusable output path,
@@ -42,7 +48,8 @@ class ClothtoolGroup(click.Group):
         try:
             return super().invoke(ctx)
         except ClothtoolError as exc:
-            _fail(ctx, f"error: {exc}", exc.exit_code, exc)
+            message = exc.format(OPTIONS) if isinstance(exc, InputError) else str(exc)
+            _fail(ctx, f"error: {message}", exc.exit_code, exc)
         except NoArgsIsHelpError:
             raise
         except click.UsageError as exc:
@@ -103,7 +110,14 @@ def _progress_enabled(quiet):
     return not quiet and sys.stderr.isatty()
 
 
-ANALYZE_EPILOG = """\b
+def _analyze_epilog():
+    from clothtool.analysis.fields import help_table
+
+    return (ANALYZE_EXAMPLES + "\b\nFields (--fields, comma separated; all = the default table, "
+            "extended = every 2D field):\n" + help_table() + ANALYZE_READING)
+
+
+ANALYZE_EXAMPLES = """\b
 Examples:
   clothtool analyze frames/ -o out.h5
       pairs (0,1), (1,2), ... of all *.ply in frames/, natural order
@@ -117,26 +131,27 @@ Examples:
       only pairs 100..199; join the parts with `clothtool merge`
   clothtool analyze frames/ -o out.h5 --kabsch --fields stretch,angle,residual,dihedral_change
       with the 3D variant: per-vertex ring rotation, residual and bending
+  clothtool analyze volume/ -o out.h5 --fields stretch,volume_ratio,flags
+      a tetrahedral sequence (.vtu, .vtk, .msh or TetGen .node frames): /tet/... fields
+
+"""
+
+ANALYZE_READING = """
 
 \b
-Fields (--fields, comma separated; default all):
-  F C U R strain stretch directions area_ratio flags
-  with --kabsch also: rotation angle residual (per vertex, /vertex/...),
-  F3 R3 U3 stretch3 directions3 (per face), dihedral_change (per edge, /edge/...);
-  flags then also selects /vertex/flags and /edge/flags
 Read the result with h5py:  h5py.File('out.h5')['face/stretch'][k]  (pair k)
 Open out.xdmf (written beside out.h5) in ParaView for the deformed mesh over time.
 
 """ + EXIT_CODES_HELP
 
 
-@main.command(epilog=ANALYZE_EPILOG)
+@main.command(epilog=_analyze_epilog())
 @click.argument("inputs", nargs=-1, required=True, metavar="FRAMES...")
 @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False),
               help="HDF5 file to write (written under a temporary name, renamed when complete).")
 @click.option("--reference", default="previous", show_default=True, metavar="previous|first|uv|PATH",
               help="Rest state of each pair: the previous frame, the first frame, the texture "
-                   "coordinates, or a PLY or OBJ mesh.")
+                   "coordinates, or a PLY or OBJ mesh (a tetrahedral mesh for tetrahedra).")
 @click.option("--uv-scale", default=1.0, show_default=True, type=float,
               help="Metres per uv unit for --reference uv.")
 @click.option("--fields", default="all", show_default=True, metavar="NAMES",
@@ -156,13 +171,18 @@ Open out.xdmf (written beside out.h5) in ParaView for the deformed mesh over tim
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary.")
 def analyze(inputs, output, reference, uv_scale, fields, dtype, compression, vertex_average,
             pair_slice, kabsch, quiet):
-    """Per-triangle deformation of a PLY or OBJ sequence, written to HDF5.
+    """Per-triangle deformation of a PLY or OBJ sequence (per tetrahedron of a
+    tetrahedral one), written to HDF5.
 
     FRAMES is a folder of .ply or .obj files, a glob, or a list of files; they are
     taken in natural order (f2.ply before f10.ply) and analysed in pairs. For
     each triangle: the deformation gradient F in the triangle's tangent frame,
     C = FᵀF, the polar split F = R·U, principal stretches and directions, the
     area ratio J and the Green strain E = (C − I)/2.
+
+    Tetrahedral frames (.vtu, .vtk, .msh, or TetGen .node with a shared or own
+    .ele) give the same fields per tetrahedron in 3D, with J = det F the volume
+    ratio and the invertible polar split (λ3 < 0 for an inverted tetrahedron).
     """
     from clothtool.analysis.sequence import analyze_sequence
 
@@ -173,7 +193,7 @@ def analyze(inputs, output, reference, uv_scale, fields, dtype, compression, ver
         pairs=pair_slice, vertex_average=vertex_average,
     )
     if not quiet:
-        from clothtool.results.xdmf import xdmf_path
+        from clothtool.analysis.output.xdmf import xdmf_path
 
         click.echo(summary.describe())
         click.echo(f"  for ParaView: {xdmf_path(output)}; overview: clothtool info {output}")
@@ -186,7 +206,7 @@ Examples:
   clothtool info out.h5 --csv | awk -F, 'NR > 1 && $5 > 1.05'      pairs with λ1 median > 1.05
 
 \b
-CSV columns: pair,reference,deformed, lambda1|lambda2|J _p5,_p50,_p95, compressed,stretched
+CSV columns: pair,reference,deformed, lambda1|lambda2|area_ratio _p5,_p50,_p95, compressed,stretched
 (fractions of triangles with λ2 < 1, λ1 > 1), flagged and per-flag counts.
 
 """ + EXIT_CODES_HELP
@@ -308,7 +328,7 @@ def plot(result, output, pair, field, component, dpi):
 
 @main.command("init-config")
 def init_config():
-    """Print a commented default simulation config (spec §5).
+    """Print a commented default simulation config.
 
     \b
       clothtool init-config > config.yaml

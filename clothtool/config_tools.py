@@ -1,5 +1,5 @@
 """Config helpers for parameter sweeps: ``simulate --set key=value`` overrides and the
-commented default config printed by ``clothtool init-config`` (spec §5).
+commented default config printed by ``clothtool init-config``.
 
 An override is ``dotted.key=value``: the key walks nested mappings (a missing mapping is
 created, so ``--set solver.substeps=4`` works when the file has no ``solver`` section) and
@@ -16,7 +16,7 @@ import yaml
 from clothtool.errors import InputError
 
 DEFAULT_CONFIG = """\
-# clothtool simulation config (spec §5, plus the simulator's optional settings).
+# clothtool simulation config: every key with its default (docs/simulate.md has them all).
 # SI units: metres, kilograms, seconds.
 # Run it with:  clothtool simulate config.yaml   (override entries with --set key=value)
 # Paths are relative to this file's folder.
@@ -35,7 +35,8 @@ mesh:
 
 material:
   density: 0.2          # kg/m², areal mass density
-  stretch: 5000.0       # N/m, membrane stiffness (warp and weft)
+  stretch: 5000.0       # N/m, membrane stiffness: one number, or [warp, weft] (along u, along v)
+  rest_stretch: 1.0     # rest length factors b_u, b_v: one number or [b_u, b_v]; 1.1 = rests 10 % longer
   shear: 50.0           # N/m, in-plane shear stiffness
   bend: 1.0e-5          # N·m, bending stiffness
   damping: 0.01         # s, stiffness-proportional damping; 0 = none
@@ -59,7 +60,7 @@ scene:
   self_collision: null          # cloth–cloth contact (implicit), e.g. {thickness: 0.002, friction: 0.2}
 
 solver:
-  method: implicit      # implicit (Baraff–Witkin), mass-spring, pbd, xpbd, projective, explicit (docs/solvers.md)
+  method: implicit      # implicit (Baraff–Witkin), mass-spring, pbd, xpbd, projective, explicit, vbd (docs/solvers.md)
   integrator: bdf2      # implicit, mass-spring: bdf2 (second order) or euler (backward Euler)
   substeps: 1           # solver steps per frame
   tolerance: 1.0e-6     # relative residual of the linear solve (the first Newton step's; later ones ask less)
@@ -69,12 +70,13 @@ solver:
   newton_tolerance: 0.04  # m/s, Newton stops when the largest velocity correction max|Δx|/h is below
   line_search: true     # backtracking line search on the Newton steps
   max_speed: 1000.0     # m/s, a faster vertex counts as a blow-up (exit code 3)
-  iterations: 10        # pbd, xpbd, projective: constraint sweeps / local-global iterations per step
+  iterations: 10        # pbd, xpbd, projective, vbd: constraint sweeps / local-global iterations / vertex sweeps per step
   pbd_variant: gauss-seidel  # pbd: gauss-seidel (symmetric sweeps) or jacobi
   relaxation: 1.0       # pbd jacobi: α in x_i += Σ corrections / (n_i + α)
   pbd_stiffness: 1.0    # pbd: per-constraint stiffness in (0, 1]
   strain_limit: 0.0     # pbd: keep edges within [1 − ε, 1 + ε] of rest length; 0 = off
   cfl: 0.5              # explicit: internal steps of at most cfl × the critical step; 0 = off
+  chebyshev_rho: 0.0    # vbd: Chebyshev acceleration with spectral radius estimate ρ in [0, 1); 0 = off
 
 time:
   fps: 30               # frames per second of simulated time

@@ -1,5 +1,7 @@
 """Shared builders for the tests: meshes with known geometry, made here (no external data)."""
 
+import time
+
 import numpy as np
 import pytest
 from scipy.spatial import Delaunay
@@ -33,7 +35,7 @@ def random_rotation(rng):
 
 
 def tangent_basis(vertices, faces):
-    """(M, 2, 3) rows t1, t2 of each triangle's tangent frame (spec §2), by numpy."""
+    """(M, 2, 3) rows t1, t2 of each triangle's tangent frame, by numpy."""
     e1 = vertices[faces[:, 1]] - vertices[faces[:, 0]]
     e2 = vertices[faces[:, 2]] - vertices[faces[:, 0]]
     t1 = e1 / np.linalg.norm(e1, axis=1)[:, None]
@@ -45,3 +47,101 @@ def tangent_basis(vertices, faces):
 @pytest.fixture
 def rng():
     return np.random.default_rng(12345)
+
+
+def tet_grid(n, rng=None, jitter=0.2):
+    """(n+1)³ vertices of a unit-spaced cube grid, each cube cut into the six Kuhn
+    tetrahedra sharing its diagonal (positively oriented): (vertices (N,3), tets (6n³, 4)).
+    ``jitter`` moves every vertex by up to that fraction of a spacing (with ``rng``)."""
+    axis = np.arange(n + 1, dtype=np.float64)
+    x = np.stack(np.meshgrid(axis, axis, axis, indexing="ij"), -1).reshape(-1, 3)
+    if rng is not None:
+        x += jitter * (rng.random(x.shape) - 0.5)
+    idx = np.arange((n + 1) ** 3).reshape(n + 1, n + 1, n + 1)
+    c = [idx[i:n + i, j:n + j, k:n + k].ravel() for i in (0, 1) for j in (0, 1) for k in (0, 1)]
+    paths = [(1, 3), (1, 5), (2, 3), (2, 6), (4, 5), (4, 6)]  # corner 0 to corner 7 via a, b
+    tets = np.concatenate([np.stack([c[0], c[a], c[b], c[7]], 1) for a, b in paths])
+    d = x[tets[:, :3]] - x[tets[:, 3:]]
+    negative = np.linalg.det(np.transpose(d, (0, 2, 1))) < 0
+    tets[negative, 0], tets[negative, 1] = tets[negative, 1], tets[negative, 0].copy()
+    return x, tets.astype(np.int64)
+
+
+# tetrahedral mesh files: variant → (extension, meshio format, meshio keywords); "tetgen" by hand
+TET_VARIANTS = {
+    "vtu": (".vtu", "vtu", {}), "vtu_ascii": (".vtu", "vtu", {"binary": False}),
+    "vtk": (".vtk", "vtk", {}), "vtk_ascii": (".vtk", "vtk", {"binary": False}),
+    "msh22": (".msh", "gmsh22", {}), "msh22_ascii": (".msh", "gmsh22", {"binary": False}),
+    "msh41": (".msh", "gmsh", {}), "msh41_ascii": (".msh", "gmsh", {"binary": False}),
+    "tetgen": (".node", None, {}),
+}
+
+
+def write_tetgen(node_path, x, tets=None, base=0, ele_path=None):
+    """A TetGen .node file (and, with ``tets``, its .ele: same name unless ``ele_path``)."""
+    lines = [f"# {len(x)} points", f"{len(x)} 3 0 0"]
+    lines += [f"{i + base} {p[0]!r} {p[1]!r} {p[2]!r}" for i, p in enumerate(x.tolist())]
+    node_path.write_text("\n".join(lines) + "\n")
+    if tets is not None:
+        ele_path = ele_path or node_path.with_suffix(".ele")
+        rows = [f"{len(tets)} 4 0"] + [f"{i + base} " + " ".join(str(v + base) for v in t)
+                                      for i, t in enumerate(tets.tolist())]
+        ele_path.write_text("\n".join(rows) + "  # end\n")
+
+
+def write_tet_file(path_stem, x, tets, variant, triangles=None):
+    """Write one frame in ``variant`` (a key of TET_VARIANTS) as ``path_stem`` + extension;
+    ``triangles`` (K, 3): extra cells that readers must ignore (not for msh41/tetgen).
+    Returns the path."""
+    import meshio
+
+    ext, fmt, kw = TET_VARIANTS[variant]
+    path = path_stem.with_name(path_stem.name + ext)
+    if fmt is None:
+        write_tetgen(path, x, tets)
+        return path
+    cells = [("tetra", tets)]
+    cell_data = {}
+    if triangles is not None:
+        cells = [("triangle", triangles), *cells]
+    if fmt.startswith("gmsh"):
+        cell_data = {key: [np.ones(len(c), np.int32) for _, c in cells]
+                     for key in ("gmsh:physical", "gmsh:geometrical")}
+    meshio.write(path, meshio.Mesh(x, cells, cell_data=cell_data), file_format=fmt, **kw)
+    return path
+
+
+# The example config of the simulator's documentation; METHOD stands for solver.method.
+EXAMPLE_CONFIG = """
+mesh: {grid: {nx: 12, ny: 12, width: 1.0, height: 1.0, plane: xy}}
+material: {density: 0.2, stretch: 5000.0, shear: 50.0, bend: 1.0e-5, damping: 0.01}
+scene:
+  gravity: [0, -9.81, 0]
+  pins: [top_corners]
+  colliders:
+    - sphere: {center: [0, -0.5, 0], radius: 0.3}
+    - plane: {point: [0, -1, 0], normal: [0, 1, 0]}
+solver: {method: METHOD, substeps: 1, tolerance: 1.0e-6, max_iterations: 500}
+time: {fps: 30, frames: 4}
+output: {dir: out/, every: 1}
+"""
+
+
+def interrupt_when(proc, ready, signum, waiting_for, timeout=300):
+    """Send ``signum`` to the clothtool process ``proc`` once ``ready()`` holds; check that it
+    exits 130 with the one-line message. Returns (stdout, stderr)."""
+    try:
+        deadline = time.monotonic() + timeout
+        while not ready():
+            assert proc.poll() is None, proc.communicate()
+            assert time.monotonic() < deadline, f"{waiting_for} never happened"
+            time.sleep(0.02)
+        proc.send_signal(signum)
+        stdout, stderr = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    assert proc.returncode == 130, stderr
+    assert stderr.decode() == "clothtool: interrupted\n"
+    return stdout, stderr

@@ -112,7 +112,7 @@ def test_merge_of_kabsch_slices_equals_single_run(tmp_path):
 
 def test_3d_fields_need_kabsch(tmp_path):
     make_sequence(tmp_path / "seq")
-    with pytest.raises(InputError, match="--kabsch"):
+    with pytest.raises(InputError, match="kabsch=True"):
         clothtool.analyze_sequence(tmp_path / "seq", tmp_path / "out.h5", fields="rotation")
     clothtool.analyze_sequence(tmp_path / "seq", tmp_path / "out.h5")
     with h5py.File(tmp_path / "out.h5") as f:

@@ -1,4 +1,4 @@
-"""Bad input through the CLI (spec §6): a corpus of broken files, sequences, options and
+"""Bad input through the CLI: a corpus of broken files, sequences, options and
 output paths, each built here. Every case must give its exit code, one line on stderr
 naming the culprit, no traceback, and leave nothing behind: no new output, no temporary
 file, and an existing output byte-identical."""
@@ -100,54 +100,9 @@ def broken_frame(tmp, data, name="frame_1.ply"):
 
 
 @case
-def empty_file(tmp):
-    return broken_frame(tmp, b"")
-
-
-@case
-def text_file_named_ply(tmp):
-    return broken_frame(tmp, b"hello, I am not a mesh\n")
-
-
-@case
-def garbage_bytes(tmp):
-    return broken_frame(tmp, np.random.default_rng(1).integers(0, 256, 4096, np.uint8).tobytes())
-
-
-@case
-def missing_end_header(tmp):
-    return broken_frame(tmp, header().replace(b"end_header\n", b"") + QUAD.tobytes())
-
-
-@case
-def end_header_without_line_break(tmp):
-    return broken_frame(tmp, header(n_faces=None, n_vertices=0).rstrip(b"\n"))
-
-
-@case
-def unknown_format(tmp):
-    return broken_frame(tmp, binary([[0, 1, 2]]).replace(b"binary_little_endian", b"binary_middle_endian"))
-
-
-@case
-def unknown_property_type(tmp):
-    return broken_frame(tmp, binary([[0, 1, 2]]).replace(b"property float y", b"property float3 y"))
-
-
-@case
-def unknown_header_keyword(tmp):
-    return broken_frame(tmp, binary([[0, 1, 2]], extra=["elemnt edge 3"]))
-
-
-@case
 def non_ascii_header(tmp):
     data = binary([[0, 1, 2]]).replace(b"ply\n", "ply\ncomment caf\u00e9 \u00e0 Z\u00fcrich\n".encode(), 1)
     return broken_frame(tmp, data)
-
-
-@case
-def huge_vertex_count_binary(tmp):
-    return broken_frame(tmp, binary([[0, 1, 2]]).replace(b"element vertex 4", b"element vertex 1000000000000"))
 
 
 @case
@@ -157,107 +112,53 @@ def huge_vertex_count_ascii(tmp):
 
 
 @case
-def huge_face_count_binary(tmp):
-    return broken_frame(tmp, binary([[0, 1, 2]], n_faces=10**12))
-
-
-@case
-def truncated_in_vertices(tmp):
-    return broken_frame(tmp, binary([[0, 1, 2]])[:-30])
-
-
-@case
-def truncated_in_faces(tmp):
-    return broken_frame(tmp, binary([[0, 1, 2], [0, 2, 3], [0, 1, 3]])[:-5])
-
-
-@case
-def truncated_ascii(tmp):
-    return broken_frame(tmp, ascii_ply(GOOD_ASCII_VERTICES, ["3 0 1 2"], n_faces=3))
-
-
-@case
-def trailing_bytes(tmp):
-    return broken_frame(tmp, binary([[0, 1, 2]]) + b"\0" * 7)
-
-
-@case
 def ascii_too_few_numbers(tmp):
     c = broken_frame(tmp, ascii_ply(["0 0 0", "1 0", "1 1 0", "0 1 0"], ["3 0 1 2"]))
     c.culprit = "line 11: vertex 1 has 2 numbers"  # the header has 9 lines
     return c
 
 
-@case
-def ascii_not_a_number(tmp):
-    return broken_frame(tmp, ascii_ply(["0 0 0", "1 0 zero", "1 1 0", "0 1 0"], ["3 0 1 2"]))
-
-
-@case
-def ascii_list_longer_than_line(tmp):
-    return broken_frame(tmp, ascii_ply(GOOD_ASCII_VERTICES, ["3 0 1 2", "4 0 1 2"]))
-
-
-@case
-def ascii_negative_list_count(tmp):
-    return broken_frame(tmp, ascii_ply(GOOD_ASCII_VERTICES, ["3 0 1 2", "-1 0 1 2"]))
-
-
-@case
-def face_with_two_corners_binary(tmp):
-    return broken_frame(tmp, binary([[0, 1, 2], [0, 1]]))
-
-
-@case
-def face_with_two_corners_ascii(tmp):
-    return broken_frame(tmp, ascii_ply(GOOD_ASCII_VERTICES, ["2 0 1", "2 1 2"]))
-
-
-@case
-def index_out_of_range(tmp):
-    return broken_frame(tmp, binary([[0, 1, 2], [0, 2, 4]]))
-
-
-@case
-def negative_index(tmp):
-    return broken_frame(tmp, binary([[0, 1, 2], [0, -1, 3]]))
-
-
-@case
-def non_integer_index(tmp):
-    return broken_frame(tmp, ascii_ply(GOOD_ASCII_VERTICES, ["3 0 1 2.5"]))
-
-
-@case
-def negative_list_count_binary(tmp):
-    return broken_frame(tmp, binary([[0, 1, 2], [0, 2, 3]], count="<i4")[:-16]
-                        + np.array([-3, 0, 2, 3], "<i4").tobytes())
-
-
-@case
-def huge_list_count_binary(tmp):
-    return broken_frame(tmp, binary([[0, 1, 2]], count="<u4")[:-16]
-                        + np.array([4_000_000_000, 0, 1, 2], "<u4").tobytes())
-
-
-@case
-def no_vertex_element(tmp):
-    return broken_frame(tmp, b"ply\nformat ascii 1.0\nelement point 1\nproperty float x\nend_header\n0\n")
-
-
-@case
-def vertex_without_z(tmp):
-    return broken_frame(tmp, ascii_ply(["0 0", "1 0", "1 1"], ["3 0 1 2"], vertex_props="xy"))
-
-
-@case
-def duplicate_property(tmp):
-    return broken_frame(tmp, binary([[0, 1, 2]]).replace(b"property float z", b"property float x"))
-
-
-@case
-def face_without_vertex_indices(tmp):
-    return broken_frame(tmp, binary([[0, 1, 2]]).replace(b"vertex_indices", b"corner_ids"))
+# broken second frames of a PLY sequence: name → a function making the file's bytes
+BROKEN_FRAMES = {
+    "empty_file": lambda: b"",
+    "text_file_named_ply": lambda: b"hello, I am not a mesh\n",
+    "garbage_bytes": lambda: np.random.default_rng(1).integers(0, 256, 4096, np.uint8).tobytes(),
+    "missing_end_header": lambda: header().replace(b"end_header\n", b"") + QUAD.tobytes(),
+    "end_header_without_line_break": lambda: header(n_faces=None, n_vertices=0).rstrip(b"\n"),
+    "unknown_format":
+        lambda: binary([[0, 1, 2]]).replace(b"binary_little_endian", b"binary_middle_endian"),
+    "unknown_property_type":
+        lambda: binary([[0, 1, 2]]).replace(b"property float y", b"property float3 y"),
+    "unknown_header_keyword": lambda: binary([[0, 1, 2]], extra=["elemnt edge 3"]),
+    "huge_vertex_count_binary":
+        lambda: binary([[0, 1, 2]]).replace(b"element vertex 4", b"element vertex 1000000000000"),
+    "huge_face_count_binary": lambda: binary([[0, 1, 2]], n_faces=10**12),
+    "truncated_in_vertices": lambda: binary([[0, 1, 2]])[:-30],
+    "truncated_in_faces": lambda: binary([[0, 1, 2], [0, 2, 3], [0, 1, 3]])[:-5],
+    "truncated_ascii": lambda: ascii_ply(GOOD_ASCII_VERTICES, ["3 0 1 2"], n_faces=3),
+    "trailing_bytes": lambda: binary([[0, 1, 2]]) + b"\0" * 7,
+    "ascii_not_a_number": lambda: ascii_ply(["0 0 0", "1 0 zero", "1 1 0", "0 1 0"], ["3 0 1 2"]),
+    "ascii_list_longer_than_line": lambda: ascii_ply(GOOD_ASCII_VERTICES, ["3 0 1 2", "4 0 1 2"]),
+    "ascii_negative_list_count": lambda: ascii_ply(GOOD_ASCII_VERTICES, ["3 0 1 2", "-1 0 1 2"]),
+    "face_with_two_corners_binary": lambda: binary([[0, 1, 2], [0, 1]]),
+    "face_with_two_corners_ascii": lambda: ascii_ply(GOOD_ASCII_VERTICES, ["2 0 1", "2 1 2"]),
+    "index_out_of_range": lambda: binary([[0, 1, 2], [0, 2, 4]]),
+    "negative_index": lambda: binary([[0, 1, 2], [0, -1, 3]]),
+    "non_integer_index": lambda: ascii_ply(GOOD_ASCII_VERTICES, ["3 0 1 2.5"]),
+    "negative_list_count_binary":
+        lambda: binary([[0, 1, 2], [0, 2, 3]], count="<i4")[:-16] + np.array([-3, 0, 2, 3], "<i4").tobytes(),
+    "huge_list_count_binary":
+        lambda: binary([[0, 1, 2]], count="<u4")[:-16] + np.array([4_000_000_000, 0, 1, 2], "<u4").tobytes(),
+    "no_vertex_element":
+        lambda: b"ply\nformat ascii 1.0\nelement point 1\nproperty float x\nend_header\n0\n",
+    "vertex_without_z": lambda: ascii_ply(["0 0", "1 0", "1 1"], ["3 0 1 2"], vertex_props="xy"),
+    "duplicate_property":
+        lambda: binary([[0, 1, 2]]).replace(b"property float z", b"property float x"),
+    "face_without_vertex_indices":
+        lambda: binary([[0, 1, 2]]).replace(b"vertex_indices", b"corner_ids"),
+}
+for _name, _make in BROKEN_FRAMES.items():
+    CASES[_name] = lambda tmp, make=_make: broken_frame(tmp, make())
 
 
 @case
@@ -426,10 +327,10 @@ def disk_full_while_writing(tmp):
 
 @case
 def out_of_memory(tmp):
-    def huge(m, fields, store):
+    def huge(self, dtype):
         raise MemoryError("Unable to allocate 74.5 GiB for an array")
     return Case([str(sequence(tmp))], "out of memory: Unable to allocate 74.5 GiB",
-                patch={"clothtool.analysis.sequence.allocate_fields": huge})
+                patch={"clothtool.analysis.deformation2d.KernelPlan.allocate": huge})
 
 
 @case
@@ -437,7 +338,7 @@ def internal_bug(tmp):
     def bug(*args):
         raise ZeroDivisionError("a bug in a kernel")
     return Case([str(sequence(tmp))], "ZeroDivisionError: a bug in a kernel", code=1,
-                patch={"clothtool.analysis.sequence.deformation_fields": bug})
+                patch={"clothtool.analysis.sequence.deformation_fields_and_next_rest": bug})
 
 
 @case
@@ -463,54 +364,21 @@ def broken_obj(tmp, data, line, options=()):
                 broken_file=folder / "frame_1.obj")
 
 
-@case
-def obj_index_out_of_range(tmp):
-    return broken_obj(tmp, GOOD_OBJ + b"f 1 2 3\nf 1 3 5\n", 10)
-
-
-@case
-def obj_negative_index_out_of_range(tmp):
-    return broken_obj(tmp, GOOD_OBJ + b"f 1 2 3\nf -1 -2 -5\n", 10)
-
-
-@case
-def obj_index_zero(tmp):
-    return broken_obj(tmp, GOOD_OBJ + b"f 0 1 2\n", 9)
-
-
-@case
-def obj_texture_index_out_of_range(tmp):
-    return broken_obj(tmp, GOOD_OBJ + b"f 1/1 2/2 3/9\n", 9)
-
-
-@case
-def obj_face_with_two_corners(tmp):
-    return broken_obj(tmp, GOOD_OBJ + b"f 1 2 3\nf 1 2\n", 10)
-
-
-@case
-def obj_bad_corner(tmp):
-    return broken_obj(tmp, GOOD_OBJ + b"f 1/1/1/1 2 3\n", 9)
-
-
-@case
-def obj_non_integer_index(tmp):
-    return broken_obj(tmp, GOOD_OBJ + b"f 1 2.5 3\n", 9)
-
-
-@case
-def obj_vertex_with_two_coordinates(tmp):
-    return broken_obj(tmp, GOOD_OBJ.replace(b"v 1 1 0", b"v 1 1") + b"f 1 2 3\n", 3)
-
-
-@case
-def obj_non_numeric_coordinate(tmp):
-    return broken_obj(tmp, GOOD_OBJ.replace(b"v 1 1 0", b"v 1 one 0") + b"f 1 2 3\n", 3)
-
-
-@case
-def obj_unknown_statement(tmp):
-    return broken_obj(tmp, GOOD_OBJ + b"f 1 2 3\nbogus 1 2\n", 10)
+# broken second frames of an OBJ sequence: name → (its text, the line the message must name)
+BROKEN_OBJ = {
+    "obj_index_out_of_range": (GOOD_OBJ + b"f 1 2 3\nf 1 3 5\n", 10),
+    "obj_negative_index_out_of_range": (GOOD_OBJ + b"f 1 2 3\nf -1 -2 -5\n", 10),
+    "obj_index_zero": (GOOD_OBJ + b"f 0 1 2\n", 9),
+    "obj_texture_index_out_of_range": (GOOD_OBJ + b"f 1/1 2/2 3/9\n", 9),
+    "obj_face_with_two_corners": (GOOD_OBJ + b"f 1 2 3\nf 1 2\n", 10),
+    "obj_bad_corner": (GOOD_OBJ + b"f 1/1/1/1 2 3\n", 9),
+    "obj_non_integer_index": (GOOD_OBJ + b"f 1 2.5 3\n", 9),
+    "obj_vertex_with_two_coordinates": (GOOD_OBJ.replace(b"v 1 1 0", b"v 1 1") + b"f 1 2 3\n", 3),
+    "obj_non_numeric_coordinate": (GOOD_OBJ.replace(b"v 1 1 0", b"v 1 one 0") + b"f 1 2 3\n", 3),
+    "obj_unknown_statement": (GOOD_OBJ + b"f 1 2 3\nbogus 1 2\n", 10),
+}
+for _name, (_data, _line) in BROKEN_OBJ.items():
+    CASES[_name] = lambda tmp, data=_data, line=_line: broken_obj(tmp, data, line)
 
 
 @case

@@ -1,4 +1,4 @@
-"""Known-answer and property tests of the per-triangle 2D kernel (spec §2)."""
+"""Known-answer and property tests of the per-triangle 2D kernel."""
 
 import numpy as np
 import pytest
@@ -238,3 +238,127 @@ def test_rotation_invariance_of_the_reference_too(rng):
     b = analyze_pair(vertices @ Q.T, deformed, faces)
     np.testing.assert_allclose(a["stretch"], b["stretch"], atol=1e-12)
     np.testing.assert_allclose(a["C"], b["C"], atol=1e-12)
+
+
+@pytest.mark.parametrize("stretch", [(1.5, 1.0), (1.2, 1.2), (0.8, 1.3)])
+def test_thickness_is_the_incompressible_third_stretch(stretch):
+    """Stretching a unit right triangle by (sx, sy): λ3 = 1/(sx·sy)."""
+    x = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], float)
+    r = analyze_pair(x, x * [*stretch, 1.0], np.array([[0, 1, 2]]), fields="thickness,flags")
+    assert set(r) == {"thickness", "flags"}
+    np.testing.assert_allclose(r["thickness"][0], 1.0 / (stretch[0] * stretch[1]), rtol=1e-14)
+
+
+# ------------------------------------------------------------------ the extended strain measures
+UNIT = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], float)  # D_r = I: F is the map of the xy plane
+
+
+def _extended(F2):
+    """The extended fields of the unit triangle deformed by the in-plane 2×2 map F2."""
+    y = UNIT.copy()
+    y[:, :2] = UNIT[:, :2] @ np.asarray(F2, float).T
+    return analyze_pair(UNIT, y, np.array([[0, 1, 2]]), fields="extended")
+
+
+def _closed_forms(lam1, lam2):
+    e1, e2 = np.log(lam1), np.log(lam2)
+    return {"principal_strain": [(lam1**2 - 1) / 2, (lam2**2 - 1) / 2],
+            "max_shear": (lam1**2 - lam2**2) / 4,
+            "von_mises": np.sqrt(2 / 3 * (e1**2 + e2**2 + (e1 + e2) ** 2)),
+            "thickness": 1 / (lam1 * lam2)}
+
+
+@pytest.mark.parametrize("s", [1.5, 0.7])
+def test_uniaxial_stretch_closed_forms(s):
+    r = _extended([[s, 0], [0, 1]])
+    for name, value in _closed_forms(max(s, 1.0), min(s, 1.0)).items():
+        np.testing.assert_allclose(r[name][0], value, rtol=1e-13, atol=1e-15, err_msg=name)
+    np.testing.assert_allclose(r["almansi"][0], np.diag([(1 - 1 / s**2) / 2, 0]), atol=1e-15)
+    np.testing.assert_allclose(r["hencky"][0], np.diag([np.log(s), 0]), atol=1e-15)
+    np.testing.assert_allclose(r["engineering"][0], np.diag([s - 1, 0]), atol=1e-15)
+    np.testing.assert_allclose(r["von_mises"][0], 2 / np.sqrt(3) * abs(np.log(s)), rtol=1e-13)
+    np.testing.assert_allclose(r["max_shear"][0], abs(s**2 - 1) / 4, rtol=1e-13)
+    np.testing.assert_allclose(r["thickness"][0], 1 / s, rtol=1e-14)
+    major = 0 if s > 1 else 1  # the x axis is the direction of λ1 when stretched, λ2 when compressed
+    np.testing.assert_allclose(np.abs(r["directions_deformed"][0][major]), [1, 0, 0], atol=1e-15)
+
+
+@pytest.mark.parametrize("s", [1.3, 0.8])
+def test_equibiaxial_stretch_closed_forms(s):
+    r = _extended([[s, 0], [0, s]])
+    for name, value in _closed_forms(s, s).items():
+        np.testing.assert_allclose(r[name][0], value, rtol=1e-13, atol=1e-15, err_msg=name)
+    np.testing.assert_allclose(r["von_mises"][0], 2 * abs(np.log(s)), rtol=1e-13)
+    np.testing.assert_allclose(r["thickness"][0], 1 / s**2, rtol=1e-14)
+    np.testing.assert_allclose(r["almansi"][0], (1 - 1 / s**2) / 2 * np.eye(2), atol=1e-15)
+    np.testing.assert_allclose(r["hencky"][0], np.log(s) * np.eye(2), atol=1e-15)
+    np.testing.assert_allclose(r["engineering"][0], (s - 1) * np.eye(2), atol=1e-15)
+    assert r["max_shear"][0] == 0.0
+
+
+@pytest.mark.parametrize("gamma", [0.2, 0.6, 2.0])
+def test_simple_shear_closed_forms(gamma):
+    """F = [[1, γ], [0, 1]]: λ = √(1 + γ²/4) ± γ/2, λ1λ2 = 1."""
+    r = _extended([[1, gamma], [0, 1]])
+    root = np.sqrt(1 + gamma**2 / 4)
+    lam1, lam2 = root + gamma / 2, root - gamma / 2
+    for name, value in _closed_forms(lam1, lam2).items():
+        np.testing.assert_allclose(r[name][0], value, rtol=1e-13, atol=1e-15, err_msg=name)
+    np.testing.assert_allclose(r["max_shear"][0], gamma * root / 2, rtol=1e-13)
+    np.testing.assert_allclose(r["von_mises"][0], 2 / np.sqrt(3) * np.log(lam1), rtol=1e-13)
+    np.testing.assert_allclose(r["thickness"][0], 1.0, rtol=1e-14)
+    # B = F·Fᵀ = [[1 + γ², γ], [γ, 1]], B⁻¹ = [[1, −γ], [−γ, 1 + γ²]]
+    np.testing.assert_allclose(r["almansi"][0], [[0, gamma / 2], [gamma / 2, -gamma**2 / 2]],
+                               atol=1e-14)
+    # U = [[2, γ], [γ, 2 + γ²]]/√(4 + γ²)
+    U = np.array([[2, gamma], [gamma, 2 + gamma**2]]) / np.sqrt(4 + gamma**2)
+    np.testing.assert_allclose(r["engineering"][0], U - np.eye(2), atol=1e-14)
+    np.testing.assert_allclose(np.linalg.eigvalsh(r["hencky"][0]), [np.log(lam2), np.log(lam1)],
+                               atol=1e-14)
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.lists(st.floats(-0.6, 0.6), min_size=9, max_size=9),
+       st.floats(0, 2 * np.pi), st.floats(-0.99, 0.99))
+def test_extended_measures_properties(noise, angle, tilt):
+    """On random triangles: hencky has eigenvalues ln λ, almansi = F⁻ᵀ E F⁻¹, engineering = U − I,
+    principal strains are the eigenvalues of E, directions_deformed are unit, in the deformed
+    plane and = F·vk/λk; a rigid motion of the same triangle has zero strain in every measure."""
+    x = np.array([[0, 0, 0], [1, 0, 0], [0.3, 1, 0]]) + 0.2 * np.reshape(noise, (3, 3))
+    y = x @ np.diag([1.4, 0.8, 1.1]) + np.reshape(noise, (3, 3))[::-1] * 0.3
+    faces = np.array([[0, 1, 2]])
+    r = analyze_pair(x, y, faces, fields="extended,F,strain,U,stretch,directions")
+    if r["flags"][0]:
+        return
+    F, E, lam = r["F"][0], r["strain"][0], r["stretch"][0]
+    np.testing.assert_allclose(np.linalg.eigvalsh(r["hencky"][0]), np.log(lam[::-1]), atol=1e-9)
+    Finv = np.linalg.inv(F)
+    np.testing.assert_allclose(r["almansi"][0], Finv.T @ E @ Finv, atol=1e-9)
+    np.testing.assert_allclose(r["engineering"][0], r["U"][0] - np.eye(2), atol=1e-12)
+    np.testing.assert_allclose(np.sort(r["principal_strain"][0]), np.linalg.eigvalsh(E), atol=1e-9)
+    assert r["von_mises"][0] >= 0 and r["max_shear"][0] >= 0
+    d = r["directions_deformed"][0]
+    np.testing.assert_allclose(np.linalg.norm(d, axis=1), 1.0, rtol=1e-12)
+    normal = np.cross(y[1] - y[0], y[2] - y[0])
+    np.testing.assert_allclose(d @ normal / np.linalg.norm(normal), 0.0, atol=1e-12)
+    # F·vk/λk in 3D: push the reference direction (3D) through the affine map of the triangle
+    A = np.linalg.lstsq(np.stack([x[1] - x[0], x[2] - x[0]]), np.stack([y[1] - y[0], y[2] - y[0]]),
+                        rcond=None)[0]
+    for k in range(2):
+        pushed = r["directions"][0][k] @ A / lam[k]
+        np.testing.assert_allclose(abs(pushed @ d[k]), 1.0, rtol=1e-9)
+    c, s = np.cos(angle), np.sin(angle)
+    Q = np.array([[c, -s * tilt, 0], [s, c * tilt, 0], [0, 0, 1]])
+    Q, _ = np.linalg.qr(Q)
+    rigid = analyze_pair(x, x @ Q.T + 3.0, faces, fields="extended")
+    for name in ("almansi", "hencky", "engineering", "principal_strain", "max_shear", "von_mises"):
+        np.testing.assert_allclose(rigid[name][0], 0.0, atol=1e-12, err_msg=name)
+    np.testing.assert_allclose(rigid["thickness"][0], 1.0, rtol=1e-12)
+
+
+def test_extended_fields_are_nan_on_degenerate_triangles():
+    bad = np.array(DEGENERATE["needle"], float)
+    r = analyze_pair(UNIT, bad, np.array([[0, 1, 2]]), fields="extended")
+    for name, value in r.items():
+        if name != "flags":
+            assert np.isnan(value).all(), name

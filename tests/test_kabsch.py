@@ -36,7 +36,7 @@ def tables(x, faces):
 
 
 def tangent_stretches(x_ref, x_def, tri):
-    """Principal stretches of spec §2 (tangent-frame edge matrices), written out with numpy."""
+    """Principal stretches of the 2D analysis (tangent-frame edge matrices), written out with numpy."""
     def edge_matrix(x):
         e1, e2 = x[tri[1]] - x[tri[0]], x[tri[2]] - x[tri[0]]
         t1 = e1 / np.linalg.norm(e1)

@@ -16,7 +16,7 @@ import subprocess
 import h5py
 import numpy as np
 import pytest
-from conftest import grid
+from conftest import grid, tet_grid, write_tet_file
 
 import clothtool
 from clothtool.io.ply import write_ply
@@ -157,6 +157,12 @@ def make_results(tmp_path):
         run(seq, tmp_path / f"part{cut[0]}.h5", pairs=cut, vertex_average="stretch")
     out["merged"] = tmp_path / "merged.h5"
     merge_results([tmp_path / "part2.h5", tmp_path / "part0.h5"], out["merged"])
+    x, tets = tet_grid(2, np.random.default_rng(0))
+    (tmp_path / "tets").mkdir()
+    for k in range(FRAMES):
+        write_tet_file(tmp_path / "tets" / f"f{k}", x * [1 + 0.05 * k, 1, 1], tets, "vtu")
+    out["tet"] = tmp_path / "tet.h5"
+    run(tmp_path / "tets", out["tet"])
     return out
 
 
@@ -164,17 +170,19 @@ def check_against_hdf5(h5_path, result, arrays):
     """Every step of ``result`` (what ParaView loaded) equals the HDF5 result."""
     with h5py.File(h5_path) as f:
         pairs = f["pairs"][:]
-        faces, positions = f["mesh/faces"][:], f["frame_vertices"]
+        cells, group, corners, vtk_type = (("tets", "tet", 4, 10) if "tets" in f["mesh"]
+                                           else ("faces", "face", 3, 5))  # VTK_TETRA, _TRIANGLE
+        faces, positions = f[f"mesh/{cells}"][:], f["frame_vertices"]
         assert result["times"] == [float(d) for d in pairs[:, 1]]
-        cell_fields = {name: f["face"][name] for name in f["face"]}
+        cell_fields = {name: f[group][name] for name in f[group]}
         point_fields = {name: f["vertex"][name] for name in f.get("vertex", {})
                         if f["vertex"][name].shape[1] == positions.shape[1]}
         assert cell_fields and len(result["steps"]) == len(pairs)
         for p, step in enumerate(result["steps"]):
             assert (step["points"], step["cells"]) == (positions.shape[1], len(faces))
-            assert step["cell_types"] == [5]  # VTK_TRIANGLE
+            assert step["cell_types"] == [vtk_type]
             np.testing.assert_array_equal(arrays[f"{p}/points"], positions[pairs[p, 1]])
-            np.testing.assert_array_equal(arrays[f"{p}/connectivity"].reshape(-1, 3), faces)
+            np.testing.assert_array_equal(arrays[f"{p}/connectivity"].reshape(-1, corners), faces)
             for kind, fields in (("cell", cell_fields), ("point", point_fields)):
                 assert set(step[kind]) == set(fields), (kind, p)
                 for name, ds in fields.items():

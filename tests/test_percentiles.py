@@ -5,7 +5,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
-from clothtool.results.percentiles import percentiles
+from clothtool.analysis.output.percentiles import percentiles
 
 QS = np.array([0.0, 5.0, 50.0, 95.0, 100.0])
 

@@ -16,8 +16,8 @@ from clothtool.errors import InputError
 from clothtool.io.ply import read_ply, write_ply
 from clothtool.results.colormap import VIRIDIS_ANCHORS, colorize, viridis
 from clothtool.results.merge import merge_results
-from clothtool.results.summary import COLUMNS, PERCENTILES, TOL
-from clothtool.results.vertex_average import VertexAverager
+from clothtool.analysis.output.summary import COLUMNS, PERCENTILES, TOL
+from clothtool.analysis.output.vertex_average import VertexAverager
 
 FRAMES = 6
 
@@ -141,12 +141,14 @@ def test_summary_matches_fields(sheet):
         s, j = f["face/stretch"][:].astype(float), f["face/area_ratio"][:].astype(float)
         summary = {name: f["summary"][name][:] for name in COLUMNS}
         assert list(f["summary"].attrs["columns"]) == list(COLUMNS)
+        for q in PERCENTILES:  # the names of results before the area_ratio_* columns
+            np.testing.assert_array_equal(f["summary"][f"J_p{q}"][:], summary[f"area_ratio_p{q}"])
     for p in range(FRAMES - 1):
         assert summary["pair"][p] == p and summary["deformed"][p] == p + 1
         for k, q in enumerate(PERCENTILES):
             assert summary[f"lambda1_p{q}"][p] == pytest.approx(np.percentile(s[p, :, 0], q))
             assert summary[f"lambda2_p{q}"][p] == pytest.approx(np.percentile(s[p, :, 1], q))
-            assert summary[f"J_p{q}"][p] == pytest.approx(np.percentile(j[p], q))
+            assert summary[f"area_ratio_p{q}"][p] == pytest.approx(np.percentile(j[p], q))
         assert summary["compressed"][p] == pytest.approx(np.mean(s[p, :, 1] < 1 - TOL))
         assert summary["stretched"][p] == pytest.approx(np.mean(s[p, :, 0] > 1 + TOL))
     # left half stretched (λ1 = 1 + 0.05k), right half compressed along x: both kinds present
@@ -250,8 +252,8 @@ def test_export_errors(sheet):
     out = tmp / "out.h5"
     clothtool.analyze_sequence(tmp / "seq", out, fields="stretch")
     runner = CliRunner()
-    for args, message in [(["--pair", "9"], "--pair 9 is not in this result"),
-                          (["--field", "F"], "--field 'F' is not in this result"),
+    for args, message in [(["--pair", "9"], "--pair 9: not in "),
+                          (["--field", "F"], "--field: 'F' is not in "),
                           (["--component", "2"], "--component 2"),
                           (["--range", "2:1"], "--range 2:1")]:
         result = runner.invoke(main, ["export", str(out), "-o", str(tmp / "x.ply"), *args])
@@ -287,7 +289,7 @@ def test_vertex_average_dataset(sheet):
                                              xs[0][faces[:, 2]] - xs[0][faces[:, 0]]), axis=1)
         np.testing.assert_allclose(f["vertex/area_ratio_avg"][2],
                                    VertexAverager(faces, len(xs[0]))(j, rest), rtol=1e-12)
-    with pytest.raises(InputError, match="--vertex-average: no vertex average of 'directions'"):
+    with pytest.raises(InputError, match="vertex_average=: no vertex average of 'directions'"):
         clothtool.analyze_sequence(tmp / "seq", tmp / "x.h5", vertex_average="directions")
 
 
@@ -426,7 +428,7 @@ def test_plot_without_matplotlib_is_one_line(sheet, monkeypatch):
 def test_xdmf_is_generic_over_face_and_vertex_datasets(sheet):
     """Datasets the 3D variant adds (3×3 rotations, scalars, uint8 flags, per-edge values) are
     picked up by shape: per-face and per-vertex ones become cell and point data."""
-    from clothtool.results.xdmf import write_xdmf
+    from clothtool.analysis.output.xdmf import write_xdmf
 
     tmp, xs, faces = sheet
     out = tmp / "out.h5"

@@ -63,8 +63,12 @@ def rel(a, b):
     return np.linalg.norm(a - b) / np.linalg.norm(b)
 
 
-def test_fem_gradient_is_the_derivative_of_the_energy():
-    model = model_of()
+WARP_WEFT = {"stretch": [300.0, 3000.0], "rest_stretch": [1.1, 0.9]}
+
+
+@pytest.mark.parametrize("material", [{}, WARP_WEFT], ids=["isotropic", "warp-weft"])
+def test_fem_gradient_is_the_derivative_of_the_energy(material):
+    model = model_of(**material)
     rng = np.random.default_rng(0)
     x = model.mesh.rest3d + 0.05 * rng.normal(size=model.mesh.rest3d.shape)
     energy = FemElastic(model)
@@ -73,9 +77,11 @@ def test_fem_gradient_is_the_derivative_of_the_energy():
     assert rel(grad.ravel(), fd_gradient(energy.energy, x)) < 1e-6
 
 
-def test_stretched_membrane_hessian_is_the_derivative_of_its_gradient():
-    """Every column of F longer than 1 and no shear: the projection clamps nothing."""
-    model = model_of(shear=0.0, bend=0.0)
+@pytest.mark.parametrize("material", [{}, WARP_WEFT], ids=["isotropic", "warp-weft"])
+def test_stretched_membrane_hessian_is_the_derivative_of_its_gradient(material):
+    """Every column of F longer than its rest factor b and no shear: the projection clamps
+    nothing."""
+    model = model_of(shear=0.0, bend=0.0, **material)
     rng = np.random.default_rng(1)
     x = 1.3 * model.mesh.rest3d + 0.002 * rng.normal(size=model.mesh.rest3d.shape)
     energy = FemElastic(model)
@@ -83,9 +89,10 @@ def test_stretched_membrane_hessian_is_the_derivative_of_its_gradient():
     assert rel(dense(matrix), fd_gradient(gradient_of(energy), x)) < 1e-6
 
 
-def test_pure_stretch_membrane_hessian_with_shear_is_the_derivative_of_its_gradient():
+@pytest.mark.parametrize("material", [{}, WARP_WEFT], ids=["isotropic", "warp-weft"])
+def test_pure_stretch_membrane_hessian_with_shear_is_the_derivative_of_its_gradient(material):
     """F = R diag(1.2, 1.1) everywhere: f0·f1 = 0, so the shear projection clamps nothing."""
-    model = model_of(bend=0.0)
+    model = model_of(bend=0.0, **material)
     q, _ = np.linalg.qr(np.random.default_rng(2).normal(size=(3, 3)))
     x = (model.mesh.rest3d * [1.2, 1.0, 1.1]) @ q.T
     energy = FemElastic(model)

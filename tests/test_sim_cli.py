@@ -3,6 +3,7 @@
 import textwrap
 
 import pytest
+from conftest import EXAMPLE_CONFIG
 
 from click.testing import CliRunner
 
@@ -62,27 +63,12 @@ def test_output_path_that_is_a_file_is_exit_2(tmp_path):
     assert result.exit_code == 2 and "not a folder" in result.output
 
 
-SPEC_EXAMPLE = """
-mesh: {grid: {nx: 12, ny: 12, width: 1.0, height: 1.0, plane: xy}}
-material: {density: 0.2, stretch: 5000.0, shear: 50.0, bend: 1.0e-5, damping: 0.01}
-scene:
-  gravity: [0, -9.81, 0]
-  pins: [top_corners]
-  colliders:
-    - sphere: {center: [0, -0.5, 0], radius: 0.3}
-    - plane: {point: [0, -1, 0], normal: [0, 1, 0]}
-solver: {method: METHOD, substeps: 1, tolerance: 1.0e-6, max_iterations: 500}
-time: {fps: 30, frames: 4}
-output: {dir: out/, every: 1}
-"""
-
-
 @pytest.mark.parametrize("method", ["implicit", "explicit", "xpbd"])
 def test_the_spec_example_config_runs(tmp_path, method):
-    """Spec §5's example starts with the sphere inside the upright sheet: the vertices pushed
+    """The documented example config starts with the sphere inside the upright sheet: the vertices pushed
     onto the sphere make zero-area hinges, which bend nothing instead of dividing by zero."""
     path = tmp_path / "spec.yaml"
-    path.write_text(SPEC_EXAMPLE.replace("METHOD", method))
+    path.write_text(EXAMPLE_CONFIG.replace("METHOD", method))
     result = CliRunner().invoke(main, ["simulate", str(path), "-q"])
     assert result.exit_code == 0, result.output
     assert (tmp_path / "out" / "frame_00004.ply").exists()

@@ -32,9 +32,15 @@ def rel_error(a, b):
     return np.linalg.norm(a - b) / np.linalg.norm(b)
 
 
+def stretch_of(ks):
+    """The kernels' (k_u, k_v, b_u, b_v) from one isotropic stiffness, or the four values."""
+    return np.array([ks, ks, 1.0, 1.0] if np.isscalar(ks) else ks, dtype=np.float64)
+
+
 def membrane(x, dr_inv, area, ks, kh, project=False):
     g, h = np.zeros(9), np.zeros((9, 9))
-    e = membrane_element(x[0:3], x[3:6], x[6:9], dr_inv, area, ks, kh, project, g, h, np.zeros((6, 6)))
+    e = membrane_element(x[0:3], x[3:6], x[6:9], dr_inv, area, stretch_of(ks), kh, project, g, h,
+                         np.zeros((6, 6)))
     return e, g, h
 
 
@@ -65,14 +71,31 @@ def random_hinge(rng):
     return np.concatenate([q @ p + 0.3 for p in (xi, xj, xk, xl)])
 
 
+@pytest.mark.parametrize("ks", [3.0, (3.0, 30.0, 1.1, 0.9), (0.0, 5.0, 1.0, 1.3)],
+                         ids=["isotropic", "warp-weft", "weft-only"])
 @pytest.mark.parametrize("seed", range(5))
-def test_membrane_gradient_and_hessian_match_finite_differences(seed):
+def test_membrane_gradient_and_hessian_match_finite_differences(seed, ks):
     rng = np.random.default_rng(seed)
     x, dr_inv, area = random_triangle(rng)
-    ks, kh = 3.0, 2.0
+    kh = 2.0
     _, g, h = membrane(x, dr_inv, area, ks, kh)
-    assert rel_error(g, central_difference(lambda y: membrane_energy(y[0:3], y[3:6], y[6:9], dr_inv, area, ks, kh), x)) < FD_TOL
+    st_ = stretch_of(ks)
+    assert rel_error(g, central_difference(lambda y: membrane_energy(y[0:3], y[3:6], y[6:9], dr_inv, area, st_, kh), x)) < FD_TOL
     assert rel_error(h, central_difference(lambda y: membrane(y, dr_inv, area, ks, kh)[1], x)) < FD_TOL
+
+
+def test_anisotropic_membrane_density_known_answer():
+    """x0 = 0, D_r = I, A = 1: f0 = x1, f1 = x2, so Ψ = k_u/2 (‖x1‖ − b_u)² + k_v/2 (‖x2‖ − b_v)²
+    + k_h/2 (x1·x2)²; zero at F = R diag(b_u, b_v)."""
+    ks = (4.0, 40.0, 1.1, 0.95)
+    x1, x2 = np.array([1.5, 0.0, 0.0]), np.array([0.3, 0.0, 2.0])
+    e, _, _ = membrane(np.concatenate([np.zeros(3), x1, x2]), np.eye(2), 1.0, ks, 3.0)
+    expected = 2.0 * (1.5 - 1.1) ** 2 + 20.0 * (np.sqrt(4.09) - 0.95) ** 2 + 1.5 * 0.45 ** 2
+    assert e == pytest.approx(expected, rel=1e-14)
+    q, _ = np.linalg.qr(np.random.default_rng(0).normal(size=(3, 3)))
+    rest = np.concatenate([np.zeros(3), q @ [1.1, 0, 0], q @ [0, 0.95, 0]])
+    e, g, _ = membrane(rest, np.eye(2), 1.0, ks, 3.0)
+    assert e == pytest.approx(0.0, abs=1e-28) and np.abs(g).max() < 1e-14
 
 
 @pytest.mark.parametrize("seed", range(5))
@@ -166,12 +189,15 @@ def test_projected_membrane_hessian_is_psd(x, dm):
 
 @settings(max_examples=100, deadline=None)
 @given(f=arrays(np.float64, 6, elements=st.floats(-2, 2, allow_nan=False)),
-       k=st.floats(0.01, 10), term=st.sampled_from(["stretch", "shear"]))
-def test_projection_is_the_eigenvalue_clamp_of_the_F_space_hessian(f, k, term):
+       k=st.floats(0.01, 10), term=st.sampled_from(["stretch", "shear"]),
+       warp_weft=st.tuples(st.floats(0.0, 10), st.floats(0.5, 1.5), st.floats(0.5, 1.5)))
+def test_projection_is_the_eigenvalue_clamp_of_the_F_space_hessian(f, k, term, warp_weft):
     """With x0 = 0, D_r = I, A = 1 the (x1, x2) block of the element Hessian is ∂²Ψ/∂F²,
     so each term's projected block must equal V max(Λ, 0) Vᵀ of its exact one
-    (the terms are projected one by one, as in Kim 2020)."""
-    ks, kh = (k, 0.0) if term == "stretch" else (0.0, k)
+    (the terms are projected one by one, as in Kim 2020); the stretch term with its own
+    k_v and rest factors b_u, b_v (eigenvalues k along f̂, k(1 − b/‖f‖) across)."""
+    k_v, b_u, b_v = warp_weft
+    ks, kh = ((k, k_v, b_u, b_v), 0.0) if term == "stretch" else (0.0, k)
     x = np.concatenate([np.zeros(3), f])
     _, _, exact = membrane(x, np.eye(2), 1.0, ks, kh)
     _, _, proj = membrane(x, np.eye(2), 1.0, ks, kh, project=True)

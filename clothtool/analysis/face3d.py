@@ -1,11 +1,11 @@
-"""Per-triangle 3×3 deformation gradient of the 3D variant (spec §3), closed form, numba, float64.
+"""Per-triangle 3×3 deformation gradient of the 3D variant, closed form, numba, float64.
 
 With e1 = x1 − x0, e2 = x2 − x0 and the unit normal n in each frame,
 
     F3 = [e1′ e2′ n′] [e1 e2 n]⁻¹
 
 maps the reference triangle onto the deformed one and the reference unit normal onto the
-deformed one. In the tangent frames T = [t1 t2 n] and T′ = [t1′ t2′ n′] of spec §2 it is block
+deformed one. In the tangent frames T = [t1 t2 n] and T′ = [t1′ t2′ n′] (clothtool.geometry) it is block
 diagonal, F3 = T′ diag(F, 1) Tᵀ with F the 2D gradient (upper triangular, det F = area′/area > 0),
 so its polar split and eigen-pairs follow from the 2D closed forms of
 :mod:`clothtool.analysis.deformation2d` (F = R·U, principal stretches λ1 ≥ λ2):
@@ -70,7 +70,7 @@ def face_fields3(x_ref, x_def, faces, tol, F3, R3, U3, stretch3, directions3, fl
         n = (r1y * r2z - r1z * r2y, r1z * r2x - r1x * r2z, r1x * r2y - r1y * r2x)
         s1, s2 = (d1x, d1y, d1z), (d2x, d2y, d2z)
         m = (d1y * d2z - d1z * d2y, d1z * d2x - d1x * d2z, d1x * d2y - d1y * d2x)
-        # F = D_d · D_r⁻¹ with D = [[a, b], [0, c]] (spec §2)
+        # F = D_d · D_r⁻¹ with D = [[a, b], [0, c]]
         f00, f01, f10, f11 = ad / a, (bd - ad * b / a) / c, 0.0, cd / c
         if F3.shape[0]:
             _frame_product(F3, t, f00, f01, f10, f11, s1, s2, m, t1, t2, n)

@@ -1,4 +1,4 @@
-"""The 3D (Kabsch) variant of the deformation analysis (spec §3): numba kernels, float64.
+"""The 3D (Kabsch) variant of the deformation analysis: numba kernels, float64.
 
 Per vertex, over the vertex and its one-ring (:func:`clothtool.geometry.one_ring`),
 each set centred on its own mean, with reference points p and deformed points q:

@@ -15,43 +15,23 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from clothtool import __version__, interrupt
-from clothtool.analysis.deformation2d import (DEGENERATE_TOL, FIELDS, allocate_fields,
-                                              allocate_rest, deformation_fields,
-                                              reference_from_positions,
-                                              reference_from_uv)
+from clothtool.analysis.deformation2d import (DEGENERATE_TOL, KernelPlan, allocate_rest,
+                                              deformation_fields,
+                                              deformation_fields_and_next_rest,
+                                              reference_from_positions, reference_from_uv)
+from clothtool.analysis.output.extras import PairExtras
+from clothtool.analysis.output.slices import parse_pair_slice
+from clothtool.analysis.output.vertex_average import parse_vertex_average
+from clothtool.analysis.output.xdmf import xdmf_path, xdmf_text
+from clothtool.analysis.fields import FIELDS_2D, FIELDS_TET, NAMES_2D, parse_fields
+from clothtool.analysis.fields import field as registry_field
 from clothtool.errors import InputError
-from clothtool.io.frames import FrameReader, discover_frames
+from clothtool.io.frames import FrameReader, discover_frames, is_tet_path
 from clothtool.io.h5 import (AtomicH5, PairWriter, check_not_an_input, check_output_path,
                               create_pair_dataset, parse_compression)
-from clothtool.results.extras import NEEDED, PairExtras
-from clothtool.results.slices import parse_pair_slice
-from clothtool.results.vertex_average import parse_vertex_average
-from clothtool.results.xdmf import xdmf_path, xdmf_text
 
 REFERENCE_MODES = ("previous", "first", "uv")
 EXTERNAL = -1  # the reference index of pairs against a reference mesh or the uv rest shape
-
-FIELD_SHAPES = {"F": (2, 2), "C": (2, 2), "U": (2, 2), "R": (2, 2), "strain": (2, 2),
-                "stretch": (2,), "directions": (2, 3), "area_ratio": (), "flags": ()}
-
-
-def parse_fields(fields, kabsch=False):
-    """'all', a comma-separated string or an iterable of names → tuple in canonical order.
-    With ``kabsch`` the names of the 3D variant are allowed too (and 'all' includes them)."""
-    from clothtool.analysis.variant3d import KABSCH_FIELDS
-
-    known = FIELDS + KABSCH_FIELDS if kabsch else FIELDS
-    if fields is None or fields == "all":
-        return known
-    names = [f.strip() for f in fields.split(",")] if isinstance(fields, str) else list(fields)
-    names = [n for n in names if n]
-    unknown = [n for n in names if n not in known]
-    if unknown and unknown[0] in KABSCH_FIELDS:
-        raise InputError(f"--fields: {unknown[0]!r} belongs to the 3D variant; add --kabsch")
-    if unknown or not names:
-        raise InputError(f"--fields: unknown field {unknown[0]!r}" if unknown else "--fields: empty"
-                         f"; choose from {', '.join(known)}")
-    return tuple(n for n in known if n in names)
 
 
 def parse_dtype(dtype):
@@ -60,7 +40,7 @@ def parse_dtype(dtype):
     except TypeError:
         dt = None
     if dt not in (np.float32, np.float64):
-        raise InputError(f"--dtype: {dtype!r} is not float32 or float64")
+        raise InputError("not float32 or float64", keyword="dtype", value=repr(dtype))
     return dt
 
 
@@ -80,16 +60,24 @@ class AnalysisSummary:
     stretch_min: float = float("nan")
     flagged: int = 0
     extra: dict = field(default_factory=dict)
+    tets: int = 0  # a tetrahedral sequence: its tetrahedra (and triangles = 0)
+    ignored_cells: int = 0  # cells other than tetrahedra in its first frame
 
     def describe(self):
+        elements = (f"{self.tets} tetrahedra" if self.tets else f"{self.triangles} triangles")
         lines = [f"wrote {self.output}: {self.pairs} pairs of {self.frames} frames, "
-                 f"{self.triangles} triangles, {self.vertices} vertices "
+                 f"{elements}, {self.vertices} vertices "
                  f"(reference: {self.reference}) in {self.seconds:.2f} s",
                  f"  fields: {', '.join(self.fields)}"]
+        if self.ignored_cells:
+            lines.append(f"  ignored: {self.ignored_cells} cells that are not tetrahedra")
         if np.isfinite(self.stretch_max):
             lines.append(f"  principal stretch: largest λ1 {self.stretch_max:.4f}, "
-                         f"smallest λ2 {self.stretch_min:.4f}")
-        if "flags" in self.fields:
+                         f"smallest λ{3 if self.tets else 2} {self.stretch_min:.4f}")
+        if "flags" in self.fields and self.tets:
+            lines.append(f"  flagged tetrahedron-pairs (degenerate, non-finite or inverted): "
+                         f"{self.flagged}")
+        elif "flags" in self.fields:
             lines.append(f"  flagged triangle-pairs (degenerate, non-finite or flipped): {self.flagged}")
         if "angle_max" in self.extra:
             lines.append(f"  3D variant: largest vertex rotation {self.extra['angle_max']:.4f} rad")
@@ -99,13 +87,32 @@ class AnalysisSummary:
         return "\n".join(lines)
 
 
-class _Rest:
-    """Rest-state data of each reference, computed once and kept while it is used."""
+class RestCache:
+    """Rest-state data of the current reference, computed once (:meth:`compute`, in the
+    subclass) and kept while it is used."""
+
+    def __init__(self):
+        self._key, self._data = None, None
+
+    def put(self, index, data):
+        """Rest-state data of frame ``index`` computed elsewhere (see ``next_rest``)."""
+        self._key, self._data = index, data
+
+    def get(self, index, positions):
+        """The rest-state data of reference ``index`` whose positions are ``positions``."""
+        if self._key != index:
+            self._data = self.compute(positions)
+            self._key = index
+        return self._data
+
+
+class _Rest(RestCache):
+    """(D_r⁻¹, basis, flags) of each reference triangle mesh or of the uv rest shape."""
 
     def __init__(self, reader, reference, uv_scale):
+        super().__init__()
         self.reader, self.reference, self.uv_scale = reader, reference, uv_scale
         self.faces = reader.faces
-        self._key, self._data = None, None
         self.external = None
         if reference == "uv":
             from clothtool.io.uv import rest_uv
@@ -113,8 +120,8 @@ class _Rest:
             self.external = ("uv", rest_uv(reader.first, reader.paths[0]))  # per corner or vertex
         elif reference not in REFERENCE_MODES:
             if not os.path.isfile(reference):
-                raise InputError(f"--reference: {reference!r} is not previous, first, uv "
-                                 "or an existing PLY or OBJ file")
+                raise InputError(f"{reference!r} is not previous, first, uv or an existing "
+                                 "PLY or OBJ file", keyword="reference")
             from clothtool.io.frames import read_mesh
 
             mesh = reader.check_same_topology(read_mesh(reference, reuse=reader.first), reference)
@@ -131,21 +138,11 @@ class _Rest:
             return self.external[1]
         return self.reader.first.vertices
 
-    def put(self, index, data):
-        """Rest-state data of frame ``index`` computed elsewhere (see ``next_rest``)."""
-        self._key, self._data = index, data
-
-    def get(self, index, positions):
-        """(D_r⁻¹, basis, flags) of reference ``index`` whose positions are ``positions``."""
-        if self._key != index:
-            if self.external is not None and self.external[0] == "uv":
-                uv = self.external[1]
-                self._data = reference_from_uv(uv.points, uv.faces, float(self.uv_scale),
-                                               DEGENERATE_TOL)
-            else:
-                self._data = reference_from_positions(positions, self.faces, DEGENERATE_TOL)
-            self._key = index
-        return self._data
+    def compute(self, positions):
+        if self.external is not None and self.external[0] == "uv":
+            uv = self.external[1]
+            return reference_from_uv(uv.points, uv.faces, float(self.uv_scale), DEGENERATE_TOL)
+        return reference_from_positions(positions, self.faces, DEGENERATE_TOL)
 
 
 def plan_pairs(n_frames, reference):
@@ -159,81 +156,145 @@ def plan_pairs(n_frames, reference):
     return np.array(pairs, dtype=np.int64).reshape(-1, 2)
 
 
+@dataclass(frozen=True)
+class AnalysisPlan:
+    """Everything an analysis will do, checked, before it reads a frame or writes a byte:
+    made by :func:`plan_analysis`, run by :func:`run_analysis`."""
+
+    frames: tuple  # paths, natural order
+    output: str
+    xdmf: str  # written beside output
+    reference: str  # previous, first, uv or a PLY path
+    uv_scale: float
+    pairs: tuple  # (reference, deformed) frame indices of the pairs computed; −1: external
+    pair_offset: int  # global index of the first of them
+    pairs_total: int  # pairs of the whole sequence
+    fields: tuple  # stored, registry order
+    averaged: tuple  # 2D fields stored as vertex averages too
+    kabsch: bool
+    dtype: np.dtype  # storage of float fields
+    compression: tuple  # h5py keyword arguments as (key, value) pairs
+    tets: bool = False  # a tetrahedral sequence (clothtool.analysis.tet_sequence)
+
+    @property
+    def computed(self):
+        """The fields the 2D or tet kernel computes: those stored, averaged or summarised."""
+        wanted = {*self.fields, *self.averaged}
+        return tuple(f.name for f in (FIELDS_TET if self.tets else FIELDS_2D)
+                     if f.name in wanted or f.summary)
+
+
+def plan_analysis(inputs, output, *, reference="previous", uv_scale=1.0, fields="all",
+                  dtype="float32", compression="none", kabsch=False, pairs=None,
+                  vertex_average=None):
+    """Check the arguments of :func:`analyze_sequence` and return its :class:`AnalysisPlan`.
+    Raises :class:`~clothtool.errors.InputError` naming the keyword at fault. The field names
+    are checked after the frames are found: tetrahedral frames have fields of their own."""
+    store = parse_dtype(dtype)
+    h5_compression = parse_compression(compression)
+    check_output_path(output)
+    xdmf = xdmf_path(output)
+    paths = discover_frames(inputs)
+    tets = is_tet_path(paths[0])
+    if tets:
+        from clothtool.analysis.tet_sequence import check_tet_options
+
+        check_tet_options(reference, kabsch, vertex_average)
+    fields = parse_fields(fields, kabsch, tets=tets)
+    averaged = parse_vertex_average(vertex_average)
+    check_not_an_input(output, paths if reference in REFERENCE_MODES else [*paths, reference])
+    if reference in ("previous", "first") and len(paths) < 2:
+        raise InputError(f"{paths[0]}: only one frame; reference={reference!r} needs at least two")
+    all_pairs = plan_pairs(len(paths), reference)
+    offset, stop = parse_pair_slice(pairs, len(all_pairs))
+    return AnalysisPlan(
+        frames=tuple(paths), output=os.fspath(output), xdmf=xdmf, reference=reference,
+        uv_scale=float(uv_scale), pairs=tuple(map(tuple, all_pairs[offset:stop].tolist())),
+        pair_offset=offset, pairs_total=len(all_pairs), fields=fields, averaged=averaged,
+        kabsch=bool(kabsch), dtype=store, compression=tuple(h5_compression.items()), tets=tets)
+
+
 def analyze_sequence(inputs, output, *, reference="previous", uv_scale=1.0, fields="all",
                      dtype="float32", compression="none", kabsch=False, progress=False,
                      command=None, pairs=None, vertex_average=None):
-    """Analyse a PLY sequence and write the per-triangle fields to ``output`` (HDF5, spec §4).
+    """Analyse a PLY sequence and write the per-triangle fields to ``output`` (HDF5), or a
+    tetrahedral sequence (.vtu, .vtk, .msh, TetGen .node) and its per-tetrahedron fields
+    (:mod:`clothtool.analysis.tet_sequence`).
 
     ``inputs``: a folder, a glob, a file or a list of them (natural order).
     ``reference``: 'previous' (pairs (i, i+1)), 'first' (pairs (0, i)), 'uv' (the
     texture coordinates times ``uv_scale``) or the path of a PLY mesh.
-    ``fields``: 'all' or names from :data:`FIELDS`; only those are computed and stored.
+    ``fields``: 'all', 'extended' or names from the registry
+    (:mod:`clothtool.analysis.fields`); only those are computed and stored.
     ``kabsch``: add the 3D variant (:mod:`clothtool.analysis.variant3d`); ``fields`` may then
     also name its datasets.
     ``pairs``: 'START:STOP' or (start, stop): compute only that slice of the pairs
-    (:mod:`clothtool.results.slices`). ``vertex_average``: face fields to also store as
+    (:mod:`clothtool.analysis.output.slices`). ``vertex_average``: face fields to also store as
     area-weighted vertex averages ``/vertex/<name>_avg``
-    (:mod:`clothtool.results.vertex_average`). Always stored: ``/frame_vertices`` and
-    ``/summary`` (:mod:`clothtool.results.extras`); ``out.xdmf`` is written beside
-    ``out.h5`` (:mod:`clothtool.results.xdmf`).
+    (:mod:`clothtool.analysis.output.vertex_average`). Always stored: ``/frame_vertices`` and
+    ``/summary`` (:mod:`clothtool.analysis.output.extras`); ``out.xdmf`` is written beside
+    ``out.h5`` (:mod:`clothtool.analysis.output.xdmf`).
     Returns an :class:`AnalysisSummary`. Raises :class:`~clothtool.errors.InputError`
     on bad input, before writing anything.
     """
     started = time.perf_counter()
-    fields = parse_fields(fields, kabsch)
-    store = parse_dtype(dtype)
-    h5_compression = parse_compression(compression)
-    averaged = parse_vertex_average(vertex_average)
-    check_output_path(output)
-    xdmf = xdmf_path(output)
-    paths = discover_frames(inputs)
-    check_not_an_input(output, paths if reference in REFERENCE_MODES else [*paths, reference])
-    internal = reference in ("previous", "first")
-    if internal and len(paths) < 2:
-        raise InputError(f"{paths[0]}: only one frame; --reference {reference} needs at least two")
-    reader = FrameReader(paths)
-    rest = _Rest(reader, reference, uv_scale)
-    all_pairs = plan_pairs(len(paths), reference)
-    offset, stop = parse_pair_slice(pairs, len(all_pairs))
-    pairs = all_pairs[offset:stop]
+    plan = plan_analysis(inputs, output, reference=reference, uv_scale=uv_scale, fields=fields,
+                         dtype=dtype, compression=compression, kabsch=kabsch, pairs=pairs,
+                         vertex_average=vertex_average)
+    if plan.tets:
+        from clothtool.analysis.tet_sequence import run_tet_analysis
+
+        return run_tet_analysis(plan, progress=progress, command=command, started=started)
+    return run_analysis(plan, progress=progress, command=command, started=started)
+
+
+def run_analysis(plan, *, progress=False, command=None, started=None):
+    """Run an :class:`AnalysisPlan`: read the frames, compute, write ``plan.output``
+    atomically. Returns an :class:`AnalysisSummary`."""
+    started = time.perf_counter() if started is None else started
+    reader = FrameReader(plan.frames)
+    rest = _Rest(reader, plan.reference, plan.uv_scale)
+    pairs = np.array(plan.pairs, dtype=np.int64).reshape(-1, 2)
     m = len(reader.faces)
-    summary = AnalysisSummary(os.fspath(output), len(paths), len(pairs), m, reader.n_vertices,
-                              fields, reference, 0.0)
+    summary = AnalysisSummary(plan.output, len(plan.frames), len(pairs), m, reader.n_vertices,
+                              plan.fields, plan.reference, 0.0)
+    kernel_plan = KernelPlan(m, plan.computed)
+    compression = dict(plan.compression)
 
     variant = None
-    if kabsch:
+    if plan.kabsch:
         from clothtool.analysis.variant3d import Variant3D
 
-        variant = Variant3D(reader.faces, reader.n_vertices, fields, DEGENERATE_TOL)
+        variant = Variant3D(reader.faces, reader.n_vertices, plan.fields, DEGENERATE_TOL)
 
     def make_buffers():
-        return {**allocate_fields(m, {*fields, *averaged, *NEEDED}, store), **extras.buffers(),
-                **(variant.buffers(store) if variant else {})}
+        out, out_flags, views = kernel_plan.allocate(plan.dtype)
+        return {**views, "kernel/out": out, "kernel/out_flags": out_flags, **extras.buffers(),
+                **(variant.buffers(plan.dtype) if variant else {})}
 
-    atomic = AtomicH5(output)
+    atomic = AtomicH5(plan.output)
     with atomic as h5:
-        _write_header(h5, paths, pairs, rest, reader, reference, uv_scale, command, store)
-        h5.attrs["pair_offset"] = offset
-        h5.attrs["pairs_total"] = len(all_pairs)
-        extras = PairExtras(h5, pairs, offset, len(paths), reader.faces, reader.n_vertices,
-                            {name: FIELD_SHAPES[name] for name in averaged}, store, h5_compression)
-        group = h5.create_group("face")
-        datasets = {name: create_pair_dataset(group, name, len(pairs), (m, *FIELD_SHAPES[name]),
-                                              np.uint8 if name == "flags" else store, h5_compression)
-                    for name in fields if name in FIELDS}
+        _write_header(h5, plan, pairs, rest, reader, command)
+        extras = PairExtras(h5, pairs, plan.pair_offset, len(plan.frames), reader.faces,
+                            reader.n_vertices,
+                            {name: registry_field(name).shape for name in plan.averaged}, plan.dtype,
+                            compression)
+        datasets = create_field_datasets(h5, "face", [n for n in plan.fields if n in NAMES_2D],
+                                         len(pairs), m, plan.dtype, compression)
         if variant:
-            datasets.update(variant.create_datasets(h5, len(pairs), store, h5_compression))
+            datasets.update(variant.create_datasets(h5, len(pairs), plan.dtype, compression))
         with PairWriter({**datasets, **extras.datasets}, make_buffers) as writer, \
-                _kernel_threads_beside_writer():
-            _stream_pairs(pairs, reader, rest, writer, summary, fields, progress, extras, variant)
+                kernel_threads_beside_writer():
+            _stream_pairs(pairs, reader, rest, writer, summary, kernel_plan, progress, extras,
+                          variant)
         extras.close()
-        atomic.add_sidecar(xdmf, xdmf_text(h5, os.path.basename(output)))  # renamed with it
+        atomic.add_sidecar(plan.xdmf, xdmf_text(h5, os.path.basename(plan.output)))
     summary.seconds = time.perf_counter() - started
     return summary
 
 
 @contextlib.contextmanager
-def _kernel_threads_beside_writer():
+def kernel_threads_beside_writer():
     """Leave one core to the HDF5 writer thread while the kernels run: on 2 cores the
     100k-triangle benchmark runs in 1.55 s with one kernel thread and 1.7–1.9 s with two."""
     import numba
@@ -246,11 +307,10 @@ def _kernel_threads_beside_writer():
         numba.set_num_threads(threads)
 
 
-def _stream_pairs(pairs, reader, rest, writer, summary, fields, progress, extras, variant):
-    """Compute every pair, one frame in memory at a time, handing results to ``writer``."""
-    faces = reader.faces
-    x_uv = rest.uv_positions() if variant and rest.reference == "uv" else None
-    last = (0, reader.first.vertices)  # the frame read most recently, reused as a reference
+def pair_frames(pairs, reader, rest, progress):
+    """(p, r, d, x_r, rest data of r, x_d) for every pair (r, d), one frame in memory at a time:
+    the frame read last is reused when the next pair names it again."""
+    last = (0, reader.first.vertices)
     for p, (r, d) in enumerate(_progress(pairs, progress)):
         interrupt.check()
         r, d = int(r), int(d)
@@ -261,15 +321,27 @@ def _stream_pairs(pairs, reader, rest, writer, summary, fields, progress, extras
         ref = rest.get(r, x_ref)
         x = last[1] if last[0] == d else reader.positions(d)
         last = (d, x)
+        yield p, r, d, x_ref, ref, x
+
+
+def _stream_pairs(pairs, reader, rest, writer, summary, kernel_plan, progress, extras, variant):
+    """Compute every pair, one frame in memory at a time, handing results to ``writer``."""
+    faces = reader.faces
+    x_uv = rest.uv_positions() if variant and rest.reference == "uv" else None
+    for p, r, d, x_ref, ref, x in pair_frames(pairs, reader, rest, progress):
         buffers = writer.buffers()
-        # In a 'previous' sequence this frame is the next pair's reference: get its rest
-        # data from the same pass (fresh arrays: the writer thread may still read these).
-        next_rest = allocate_rest(len(faces) if rest.reference == "previous" else 0)
-        deformation_fields(x, faces, *ref, DEGENERATE_TOL, *(buffers[n] for n in FIELDS),
-                           *next_rest)
-        if len(next_rest[2]):
+        kernel = (*ref, DEGENERATE_TOL, kernel_plan.starts, kernel_plan.needs,
+                  buffers["kernel/out"], buffers["kernel/out_flags"])
+        if rest.reference == "previous":
+            # This frame is the next pair's reference: its rest data from the same pass
+            # (fresh arrays: the writer thread may still read the current ones).
+            next_rest = allocate_rest(len(faces))
+            deformation_fields_and_next_rest(x, faces, *kernel, *next_rest)
             rest.put(d, next_rest)
-        _accumulate(summary, buffers, fields)
+        else:
+            deformation_fields(x, faces, *kernel)
+        accumulate(summary, buffers["stretch"] if "stretch" in summary.fields else None,
+                   buffers["flags"])
         if variant:
             variant.compute(x_ref if x_uv is None else x_uv, x, buffers)
             _accumulate_3d(summary, buffers)
@@ -277,36 +349,56 @@ def _stream_pairs(pairs, reader, rest, writer, summary, fields, progress, extras
                                                    ((r, x_ref), (d, x))))
 
 
-def _write_header(h5, paths, pairs, rest, reader, reference, uv_scale, command, store):
-    import h5py
-
-    h5.attrs["clothtool_version"] = __version__
-    h5.attrs["reference"] = reference
-    h5.attrs["command"] = command or "clothtool.analyze_sequence"
-    h5.attrs["created"] = datetime.datetime.now(datetime.timezone.utc).astimezone().isoformat(
-        timespec="seconds")
-    h5.attrs["degenerate_tol"] = DEGENERATE_TOL
-    h5.attrs["dtype"] = store.name
+def _write_header(h5, plan, pairs, rest, reader, command):
+    write_common_header(h5, plan, pairs, command)
+    reference = plan.reference
     if reference == "uv":
-        h5.attrs["uv_scale"] = float(uv_scale)
+        h5.attrs["uv_scale"] = plan.uv_scale
     mesh = h5.create_group("mesh")
     mesh.create_dataset("faces", data=reader.faces)
     mesh.create_dataset("face_source", data=reader.first.face_source)
     mesh.create_dataset("vertices", data=rest.vertices())
     if reference == "uv":
         mesh.create_dataset(rest.external[1].name, data=rest.external[1].data)
-    h5.create_dataset("frames", data=np.array(paths, dtype=object), dtype=h5py.string_dtype())
+
+
+def write_common_header(h5, plan, pairs, command, tol=DEGENERATE_TOL):
+    """Root attributes, ``/frames`` and ``/pairs`` of a result (triangles or tetrahedra)."""
+    import h5py
+
+    h5.attrs["clothtool_version"] = __version__
+    h5.attrs["reference"] = plan.reference
+    h5.attrs["command"] = command or "clothtool.analyze_sequence"
+    h5.attrs["created"] = datetime.datetime.now(datetime.timezone.utc).astimezone().isoformat(
+        timespec="seconds")
+    h5.attrs["degenerate_tol"] = tol
+    h5.attrs["dtype"] = plan.dtype.name
+    h5.create_dataset("frames", data=np.array(plan.frames, dtype=object),
+                      dtype=h5py.string_dtype())
     h5.create_dataset("pairs", data=pairs)
+    h5.attrs["pair_offset"] = plan.pair_offset
+    h5.attrs["pairs_total"] = plan.pairs_total
 
 
-def _accumulate(summary, buffers, fields):
-    if "stretch" in fields and buffers["stretch"].size:
-        s = buffers["stretch"]
-        if np.isfinite(s).any():
-            summary.stretch_max = float(np.fmax(summary.stretch_max, np.nanmax(s[:, 0])))
-            summary.stretch_min = float(np.fmin(summary.stretch_min, np.nanmin(s[:, 1])))
-    if "flags" in fields:
-        summary.flagged += int(np.count_nonzero(buffers["flags"]))
+def create_field_datasets(h5, group, names, n_pairs, m, store, compression):
+    """``/<group>/<name>`` (P, M, *shape) for the registry fields ``names`` of ``group``
+    (float fields in ``store``, integer fields uint8)."""
+    parent = h5.create_group(group)
+    datasets = {}
+    for name in names:
+        f = registry_field(name, group)
+        datasets[name] = create_pair_dataset(parent, name, n_pairs, (m, *f.shape),
+                                             np.uint8 if f.integer else store, compression)
+    return datasets
+
+
+def accumulate(summary, stretch, flags):
+    """Into ``summary``: the largest λ1 and the smallest last stretch (λ2, or λ3 of
+    tetrahedra) of a pair's (M, k) ``stretch`` (None: not reported), and its flagged count."""
+    if stretch is not None and stretch.size and np.isfinite(stretch).any():
+        summary.stretch_max = float(np.fmax(summary.stretch_max, np.nanmax(stretch[:, 0])))
+        summary.stretch_min = float(np.fmin(summary.stretch_min, np.nanmin(stretch[:, -1])))
+    summary.flagged += int(np.count_nonzero(flags))
 
 
 def _accumulate_3d(summary, buffers):

@@ -1,4 +1,4 @@
-"""The 3D (Kabsch) variant inside ``analyze_sequence`` (``clothtool analyze --kabsch``, spec §3).
+"""The 3D (Kabsch) variant inside ``analyze_sequence`` (``clothtool analyze --kabsch``).
 
 Datasets, beside the 2D ones (P pairs, N vertices, M triangles, E interior edges):
 
@@ -17,15 +17,13 @@ import numpy as np
 
 from clothtool.analysis.dihedral import dihedral_fields
 from clothtool.analysis.face3d import face_fields3
+from clothtool.analysis.fields import NAMES_3D, REGISTRY
 from clothtool.analysis.kabsch import vertex_fields
 from clothtool.geometry import hinges, one_ring
 from clothtool.io.h5 import create_pair_dataset
 
-SHAPES = {"vertex/rotation": (3, 3), "vertex/angle": (), "vertex/residual": (), "vertex/flags": (),
-          "face/F3": (3, 3), "face/R3": (3, 3), "face/U3": (3, 3), "face/stretch3": (3,),
-          "face/directions3": (3, 3),
-          "edge/dihedral_change": (), "edge/flags": ()}
-KABSCH_FIELDS = tuple(key.split("/")[1] for key in SHAPES if not key.endswith("/flags"))
+SHAPES = {f.key: f.shape for f in REGISTRY if f.kernel not in ("2d", "tet")}
+KABSCH_FIELDS = NAMES_3D
 VERTEX_KEYS = ("vertex/rotation", "vertex/angle", "vertex/residual", "vertex/flags")
 FACE_KEYS = ("face/F3", "face/R3", "face/U3", "face/stretch3", "face/directions3")
 EDGE_KEYS = ("edge/dihedral_change", "edge/flags")

@@ -1,7 +1,9 @@
 """Finding the frames of a sequence: a folder, a glob, or a list of files, in natural order.
 
 A sequence is in one format, known from the extension: ``.obj`` files are read as Wavefront
-OBJ (:mod:`clothtool.io.obj`), anything else as PLY (:mod:`clothtool.io.ply`)."""
+OBJ (:mod:`clothtool.io.obj`), ``.vtu``, ``.vtk``, ``.msh`` and ``.node`` as tetrahedral meshes
+(:mod:`clothtool.io.tetmesh`, by the tetrahedral analysis), anything else as PLY
+(:mod:`clothtool.io.ply`)."""
 
 import glob
 import os
@@ -13,11 +15,20 @@ from clothtool.errors import InputError
 
 _DIGITS = re.compile(r"(\d+)")
 MESH_EXTENSIONS = (".ply", ".obj")
+TET_EXTENSIONS = (".vtu", ".vtk", ".msh", ".node")  # as clothtool.io.tetmesh (not imported: start-up)
+FRAME_EXTENSIONS = MESH_EXTENSIONS + TET_EXTENSIONS
 
 
 def mesh_format(path):
-    """'obj' for a ``.obj`` file (any case), else 'ply'."""
-    return "obj" if os.fspath(path).lower().endswith(".obj") else "ply"
+    """'obj' for a ``.obj`` file (any case), the extension of a tetrahedral mesh file
+    ('vtu', 'vtk', 'msh', 'node'), else 'ply'."""
+    ext = os.path.splitext(os.fspath(path))[1].lower()
+    return ext[1:] if ext in (".obj", *TET_EXTENSIONS) else "ply"
+
+
+def is_tet_path(path):
+    """Whether ``path`` names a tetrahedral mesh file (by its extension)."""
+    return os.path.splitext(os.fspath(path))[1].lower() in TET_EXTENSIONS
 
 
 def read_mesh(path, *, reuse=None):
@@ -40,9 +51,10 @@ def natural_key(path):
 def discover_frames(inputs):
     """Resolve ``inputs`` (a path, a glob or a list of them) to an ordered list of mesh files.
 
-    A folder contributes its ``*.ply`` or ``*.obj`` files (case-insensitive; not both), a glob
-    its matches; each folder or glob is sorted naturally, explicit files keep the order given.
-    All frames must be in one format.
+    A folder contributes its ``*.ply`` or ``*.obj`` files, or its tetrahedral meshes (``.vtu``,
+    ``.vtk``, ``.msh`` or TetGen ``.node``; case-insensitive; one format), a glob its matches;
+    each folder or glob is sorted naturally, explicit files keep the order given. All frames
+    must be in one format.
     """
     if isinstance(inputs, (str, os.PathLike)):
         inputs = [inputs]
@@ -50,9 +62,10 @@ def discover_frames(inputs):
     for item in map(os.fspath, inputs):
         if os.path.isdir(item):
             found = [os.path.join(item, f) for f in os.listdir(item)
-                     if f.lower().endswith(MESH_EXTENSIONS) and os.path.isfile(os.path.join(item, f))]
+                     if f.lower().endswith(FRAME_EXTENSIONS) and os.path.isfile(os.path.join(item, f))]
             if not found:
-                raise InputError(f"{item}: folder contains no .ply or .obj files")
+                raise InputError(f"{item}: folder contains no .ply or .obj files (nor .vtu, .vtk, "
+                                 ".msh or .node tetrahedral meshes)")
             _one_format(found, f"{item}: folder holds")
             frames.extend(sorted(found, key=natural_key))
         elif os.path.isfile(item):
@@ -75,22 +88,29 @@ def _one_format(paths, what):
     for p in paths:
         formats.setdefault(mesh_format(p), p)
     if len(formats) > 1:
-        raise InputError(f"{what} both .ply and .obj files ({os.path.basename(formats['ply'])}, "
-                         f"{os.path.basename(formats['obj'])}); a sequence is in one format")
+        order = [ext[1:] for ext in FRAME_EXTENSIONS]
+        a, b = sorted(formats, key=order.index)[:2]
+        raise InputError(f"{what} both .{a} and .{b} files ({os.path.basename(formats[a])}, "
+                         f"{os.path.basename(formats[b])}); a sequence is in one format")
 
 
 class FrameReader:
     """Reads the frames of a sequence against the topology of the first.
 
-    Every frame must have the first frame's vertex count and faces; a face block
-    that is byte-identical to the first frame's is not parsed again.
+    Every frame must have the first frame's vertex count and cells (``faces``; ``tets`` for
+    :class:`~clothtool.io.tetmesh.TetFrameReader`); a face block that is byte-identical to the
+    first frame's is not parsed again.
     """
+
+    cells, cell_word = "faces", "faces"
 
     def __init__(self, paths):
         self.paths = list(paths)
-        self.first = read_mesh(self.paths[0])
-        if len(self.first.faces) == 0:
-            raise InputError(f"{self.paths[0]}: mesh has no faces")
+        self.first = self.read(self.paths[0])
+        if len(getattr(self.first, self.cells)) == 0:
+            raise InputError(f"{self.paths[0]}: mesh has no {self.cell_word}")
+
+    read = staticmethod(read_mesh)  # (path, reuse=None) → mesh
 
     @property
     def faces(self):
@@ -101,11 +121,10 @@ class FrameReader:
         return len(self.first.vertices)
 
     def mesh(self, i):
-        """The mesh (:class:`~clothtool.io.ply.PlyMesh`) of frame ``i``, checked against frame 0."""
+        """The mesh of frame ``i``, checked against frame 0."""
         if i == 0:
             return self.first
-        return self.check_same_topology(read_mesh(self.paths[i], reuse=self.first),
-                                        self.paths[i])
+        return self.check_same_topology(self.read(self.paths[i], reuse=self.first), self.paths[i])
 
     def positions(self, i):
         """(N, 3) float64 positions of frame ``i``."""
@@ -116,6 +135,7 @@ class FrameReader:
         if len(mesh.vertices) != self.n_vertices:
             raise InputError(f"{path}: {len(mesh.vertices)} vertices, but {first} has "
                              f"{self.n_vertices}; frames must correspond vertex by vertex")
-        if mesh.faces is not self.first.faces and not np.array_equal(mesh.faces, self.first.faces):
-            raise InputError(f"{path}: faces differ from those of {first}")
+        cells, first_cells = getattr(mesh, self.cells), getattr(self.first, self.cells)
+        if cells is not first_cells and not np.array_equal(cells, first_cells):
+            raise InputError(f"{path}: {self.cell_word} differ from those of {first}")
         return mesh

@@ -1,4 +1,4 @@
-"""Writing analysis results to HDF5 (spec §4) without ever leaving a partial file.
+"""Writing analysis results to HDF5 without ever leaving a partial file.
 
 The file is written under a temporary name in the target folder and renamed over
 the target only when complete; on any error, Ctrl-C or SIGTERM the temporary file
@@ -51,7 +51,7 @@ def parse_compression(spec):
             return {"compression": "gzip", "compression_opts": 4, "shuffle": True}
         if level.isdigit() and 0 <= int(level) <= 9:
             return {"compression": "gzip", "compression_opts": int(level), "shuffle": True}
-    raise InputError(f"--compression: {spec!r} is not 'none', 'gzip' or 'gzip=0..9'")
+    raise InputError(f"{spec!r} is not 'none', 'gzip' or 'gzip=0..9'", keyword="compression")
 
 
 class AtomicH5:

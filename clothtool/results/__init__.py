@@ -1,2 +1,2 @@
-"""Making analysis results usable elsewhere: ParaView (XDMF), summaries, coloured PLY,
-plots, and joining results computed in slices on several machines."""
+"""Tools that read a finished analysis result (``info``, ``export``, ``plot``, ``merge``),
+through :mod:`clothtool.io.result`."""

@@ -5,15 +5,17 @@ The face field goes in twice: as a float face property (its value, for analysis)
 which MeshLab shows. Blender's PLY importer reads only vertex colours, so by default the
 vertices are coloured too, from the average of the incident faces' values weighted by their
 deformed area. A vertex field (``/vertex/<name>``) gives a vertex property and vertex colours.
-NaN (flagged) values are grey.
+NaN (flagged) values are grey. A tetrahedral result (``/tet/<name>``) is exported as its
+boundary surface (the triangles of one tetrahedron only), each triangle carrying the value
+of its tetrahedron.
 """
 
 import numpy as np
 
 from clothtool.errors import InputError
 from clothtool.results.colormap import colorize, value_range
-from clothtool.results.info import open_result
-from clothtool.results.vertex_average import VertexAverager
+from clothtool.io.result import open_result
+from clothtool.analysis.output.vertex_average import VertexAverager
 
 
 def parse_range(spec):
@@ -23,9 +25,10 @@ def parse_range(spec):
     try:
         lo, hi = (float(v) for v in spec.split(":"))
     except ValueError:
-        raise InputError(f"--range: {spec!r} is not LO:HI (for example 0.9:1.1)") from None
+        raise InputError(f"{spec!r} is not LO:HI (for example 0.9:1.1)",
+                         keyword="color_range") from None
     if not lo < hi:
-        raise InputError(f"--range {spec}: LO must be below HI")
+        raise InputError("LO must be below HI", keyword="color_range", value=spec)
     return lo, hi
 
 
@@ -38,25 +41,26 @@ def triangle_areas(x, faces):
 
 def field_values(h5, pair, field, component):
     """(values, where, name) of pair ``pair`` (global index): the ``component``-th component
-    of ``/face/<field>`` (where = 'face') or ``/vertex/<field>`` (where = 'vertex'), and its
+    of ``/face/<field>``, ``/tet/<field>`` or ``/vertex/<field>`` (where = the group), and its
     property name (``field``, or ``field_<component>`` for a field with several)."""
     offset = int(h5.attrs.get("pair_offset", 0))
     n_pairs = len(h5["pairs"])
     if not offset <= pair < offset + n_pairs:
-        raise InputError(f"{h5.filename}: --pair {pair} is not in this result "
-                         f"(pairs {offset}..{offset + n_pairs - 1})")
-    for where in ("face", "vertex"):
+        raise InputError(f"not in {h5.filename} (pairs {offset}..{offset + n_pairs - 1})",
+                         keyword="pair", value=pair)
+    for where in ("face", "tet", "vertex"):
         if where in h5 and field in h5[where]:
             ds = h5[where][field]
             values = ds[pair - offset].reshape(ds.shape[1], -1)
             if not 0 <= component < values.shape[1]:
-                raise InputError(f"{h5.filename}: --component {component}: {where}/{field} has "
-                                 f"{values.shape[1]} component(s), 0..{values.shape[1] - 1}")
+                raise InputError(f"{h5.filename}: {where}/{field} has {values.shape[1]} "
+                                 f"component(s), 0..{values.shape[1] - 1}", keyword="component",
+                                 value=component)
             name = field if values.shape[1] == 1 else f"{field}_{component}"
             return values[:, component].astype(np.float64), where, name
-    available = [f"{g}/{n}" for g in ("face", "vertex") if g in h5 for n in h5[g]]
-    raise InputError(f"{h5.filename}: --field {field!r} is not in this result; "
-                     f"available: {', '.join(available)}")
+    available = [f"{g}/{n}" for g in ("face", "tet", "vertex") if g in h5 for n in h5[g]]
+    raise InputError(f"{field!r} is not in {h5.filename}; available: {', '.join(available)}",
+                     keyword="field")
 
 
 def export_ply(h5_path, output, *, pair=0, field="stretch", component=0, color_range=None,
@@ -73,7 +77,13 @@ def export_ply(h5_path, output, *, pair=0, field="stretch", component=0, color_r
         if "frame_vertices" not in h5:
             raise InputError(f"{h5_path}: no /frame_vertices; analyse the sequence again")
         x = h5["frame_vertices"][deformed]
-        faces = h5["mesh/faces"][:]
+        if where == "tet":
+            from clothtool.io.tetmesh import boundary_faces
+
+            faces, owner = boundary_faces(h5["mesh/vertices"][:], h5["mesh/tets"][:])
+            values, where = values[owner], "face"
+        else:
+            faces = h5["mesh/faces"][:]
     lo, hi = color_range or value_range(values)
     vprops, fprops = {}, {}
     if where == "face":

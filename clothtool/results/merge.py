@@ -1,8 +1,8 @@
 """``clothtool merge``: join results computed in slices (``analyze --pairs START:STOP``) into one
 result equal, dataset by dataset, to a single run over those pairs.
 
-Per-pair datasets are ``/pairs`` and, in the groups ``face``, ``vertex``, ``edge`` and
-``summary``, every dataset whose first axis is the part's pair count; they are concatenated in
+Per-pair datasets are ``/pairs`` and, in the groups ``face``, ``tet``, ``vertex``, ``edge``
+and ``summary``, every dataset whose first axis is the part's pair count; they are concatenated in
 pair order. ``/frame_vertices`` takes each frame from a part that read it. Everything else
 (``/mesh``, ``/frames``, …) must be equal in all parts and is copied once. Parts may be given
 in any order but must be slices of the same analysis (same frames, mesh, reference, fields,
@@ -21,10 +21,10 @@ import os
 import numpy as np
 
 from clothtool.errors import InputError
-from clothtool.results.info import open_result
-from clothtool.results.xdmf import VIEWS
+from clothtool.analysis.output.xdmf import VIEWS
+from clothtool.io.result import open_result
 
-PAIR_GROUPS = ("face", "vertex", "edge", "summary")
+PAIR_GROUPS = ("face", "tet", "vertex", "edge", "summary")
 VARYING_ATTRS = ("command", "created", "pair_offset", "merged_commands")  # differ between parts
 BLOCK_BYTES = 64 << 20  # rows copied at a time
 
@@ -120,8 +120,9 @@ def merge_results(paths, output, *, command=None, allow_partial=False):
     """Join the slice results ``paths`` into ``output`` (atomic HDF5, plus its XDMF).
     ``allow_partial``: accept parts that cover only some of the analysis' pairs (still
     consecutive). Returns (pair_offset, number of pairs) of the merged result."""
+    from clothtool.analysis.output.summary import add_aliases
     from clothtool.io.h5 import AtomicH5, check_output_path
-    from clothtool.results.xdmf import xdmf_path, xdmf_text
+    from clothtool.analysis.output.xdmf import xdmf_path, xdmf_text
 
     if not paths:
         raise InputError("merge: no input files")
@@ -165,6 +166,8 @@ def merge_results(paths, output, *, command=None, allow_partial=False):
                                 done.add(frame)
                 else:
                     first.copy(src, dst, name)
+            if "summary" in dst:
+                add_aliases(dst["summary"])
             atomic.add_sidecar(xdmf, xdmf_text(dst, os.path.basename(output)))  # renamed with it
     finally:
         for h5 in parts:

@@ -1,10 +1,11 @@
 """``clothtool plot``: one figure that shows a result at a glance (matplotlib, optional extra).
 
 Four panels: (1) the 5th/50th/95th percentiles of the principal stretches λ1, λ2 and
-(2) of the area ratio J against the deformed frame, from ``/summary``; (3) histograms of
-λ1, λ2 and J over the triangles of the pairs (at most :data:`HISTOGRAM_PAIRS` pairs, evenly
+(2) of the area ratio λ1λ2 against the deformed frame, from ``/summary``; (3) histograms of
+λ1, λ2 and the area ratio over the triangles of the pairs (at most :data:`HISTOGRAM_PAIRS` pairs, evenly
 spaced); (4) one field of one pair drawn on its deformed mesh, projected on the mesh's
-best-fit plane (the two leading right-singular vectors of the centred positions).
+best-fit plane (the two leading right-singular vectors of the centred positions). A
+tetrahedral result shows λ3 too, the volume ratio, and its boundary surface in panel 4.
 """
 
 import os
@@ -14,8 +15,7 @@ import numpy as np
 from clothtool.errors import InputError
 from clothtool.io.atomic import atomic_path
 from clothtool.results.export import field_values
-from clothtool.results.info import open_result
-from clothtool.results.summary import read_summary
+from clothtool.io.result import open_result, read_summary
 
 HISTOGRAM_PAIRS = 100
 MISSING = "clothtool plot needs matplotlib: pip install 'clothtool[plot]'"
@@ -46,16 +46,18 @@ def _band(ax, t, summary, name, label, color):
     ax.plot(t, summary[f"{name}_p50"], color=color, lw=1.5, label=f"{label} median")
 
 
-def _histogram_data(h5):
-    """λ1, λ2, J (finite values) of up to HISTOGRAM_PAIRS evenly spaced pairs, and the count."""
+def _histogram_data(h5, group, ratio):
+    """λ1, λ2 (λ3), J (finite values) of up to HISTOGRAM_PAIRS evenly spaced pairs, and the
+    count; ``ratio``: the dataset of J in ``group``."""
     n = len(h5["pairs"])
     picks = np.unique(np.linspace(0, n - 1, min(n, HISTOGRAM_PAIRS)).round().astype(int))
     out = {}
-    if "stretch" in h5.get("face", {}):
-        s = np.concatenate([h5["face/stretch"][p] for p in picks])
-        out["λ1"], out["λ2"] = s[:, 0], s[:, 1]
-    if "area_ratio" in h5.get("face", {}):
-        out["J"] = np.concatenate([h5["face/area_ratio"][p] for p in picks])
+    if "stretch" in h5.get(group, {}):
+        s = np.concatenate([h5[f"{group}/stretch"][p] for p in picks])
+        for k in range(s.shape[1]):
+            out[f"λ{k + 1}"] = s[:, k]
+    if ratio in h5.get(group, {}):
+        out[ratio.replace("_", " ")] = np.concatenate([h5[f"{group}/{ratio}"][p] for p in picks])
     return {k: v[np.isfinite(v)] for k, v in out.items()}, len(picks)
 
 
@@ -82,16 +84,23 @@ def plot_result(h5_path, output, *, pair=None, field=None, component=0, dpi=120)
     fmt = _image_format(output)
     with open_result(h5_path) as h5:
         summary = read_summary(h5)
-        faces_group = h5.get("face", {})
-        field = field or ("stretch" if "stretch" in faces_group else "area_ratio")
+        tets = "tets" in h5["mesh"]
+        group, ratio = ("tet", "volume_ratio") if tets else ("face", "area_ratio")
+        field = field or ("stretch" if "stretch" in h5.get(group, {}) else ratio)
         if pair is None:
             pair = int(summary["pair"][np.nanargmax(summary["lambda1_p95"])])
         values, where, name = field_values(h5, pair, field, component)
         offset = int(h5.attrs.get("pair_offset", 0))
         frame = int(h5["pairs"][pair - offset][1])
         x = h5["frame_vertices"][frame].astype(np.float64)
-        faces = h5["mesh/faces"][:]
-        hist, n_hist = _histogram_data(h5)
+        if where == "tet":  # its boundary surface, each triangle with its tetrahedron's value
+            from clothtool.io.tetmesh import boundary_faces
+
+            faces, owner = boundary_faces(h5["mesh/vertices"][:], h5["mesh/tets"][:])
+            values, where = values[owner], "face"
+        else:
+            faces = h5["mesh/faces"][:]
+        hist, n_hist = _histogram_data(h5, group, ratio)
         n_pairs = len(h5["pairs"])
 
     fig, axes = plt.subplots(2, 2, figsize=(11, 8.5), constrained_layout=True)
@@ -99,13 +108,17 @@ def plot_result(h5_path, output, *, pair=None, field=None, component=0, dpi=120)
     ax = axes[0, 0]
     _band(ax, t, summary, "lambda1", "λ1", "tab:red")
     _band(ax, t, summary, "lambda2", "λ2", "tab:blue")
+    if tets:
+        _band(ax, t, summary, "lambda3", "λ3", "tab:purple")
     ax.axhline(1.0, color="k", lw=0.6)
     ax.set(xlabel="deformed frame", ylabel="principal stretch", title="Principal stretches per pair")
     ax.legend(fontsize=8)
     ax = axes[0, 1]
-    _band(ax, t, summary, "J", "J", "tab:green")
+    _band(ax, t, summary, ratio, ratio.replace("_", " "), "tab:green")
     ax.axhline(1.0, color="k", lw=0.6)
-    ax.set(xlabel="deformed frame", ylabel="area ratio J = λ1·λ2", title="Area ratio per pair")
+    ratio_label = ("volume ratio det F", "Volume ratio") if tets else ("area ratio λ1·λ2",
+                                                                      "Area ratio")
+    ax.set(xlabel="deformed frame", ylabel=ratio_label[0], title=f"{ratio_label[1]} per pair")
     ax.legend(fontsize=8)
 
     ax = axes[1, 0]
@@ -113,12 +126,14 @@ def plot_result(h5_path, output, *, pair=None, field=None, component=0, dpi=120)
         lo = min(v.min() for v in hist.values() if v.size)
         hi = max(v.max() for v in hist.values() if v.size)
         bins = np.linspace(lo, hi if hi > lo else lo + 1e-6, 60)
-        for (label, v), color in zip(hist.items(), ("tab:red", "tab:blue", "tab:green")):
-            ax.hist(v, bins=bins, histtype="step", lw=1.5, color=color, label=label)
+        colors = {"λ1": "tab:red", "λ2": "tab:blue", "λ3": "tab:purple", "area ratio": "tab:green",
+                  "volume ratio": "tab:green"}
+        for label, v in hist.items():
+            ax.hist(v, bins=bins, histtype="step", lw=1.5, color=colors[label], label=label)
         ax.set_yscale("log")
         ax.xaxis.set_major_locator(plt.MaxNLocator(5))
         ax.legend(fontsize=8)
-    ax.set(xlabel="value", ylabel="triangles",
+    ax.set(xlabel="value", ylabel="tetrahedra" if tets else "triangles",
            title=f"Histogram over {'all' if n_hist == n_pairs else n_hist} of {n_pairs} pairs")
 
     ax = axes[1, 1]

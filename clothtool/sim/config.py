@@ -70,6 +70,26 @@ def _integer(*, minimum):
     return check
 
 
+def _warp_weft(*, exclusive):
+    """A number (the same along u and v) or a list of two: [along u (warp), along v (weft)]."""
+    number = _number(minimum=0, exclusive=exclusive)
+
+    def check(value, key):
+        if isinstance(value, (list, tuple)):
+            if len(value) != 2:
+                raise _type_error(key, "a number or a list of 2 numbers [warp, weft]", value)
+            return tuple(number(v, f"{key}[{i}]") for i, v in enumerate(value))
+        return number(value, key)
+    return check
+
+
+def _below_one(value, key):
+    value = _number(minimum=0)(value, key)
+    if value >= 1.0:
+        raise InputError(f"{key} must be < 1, got {value:g}")
+    return value
+
+
 def _choice(options):
     def check(value, key):
         if value not in options:
@@ -186,10 +206,15 @@ class MeshSpec:
 
 @dataclass(frozen=True)
 class Material:
-    """Areal density (kg/m²), membrane stiffnesses (N/m), bending stiffness (N·m), damping (s)."""
+    """Areal density (kg/m²), membrane stiffnesses (N/m), bending stiffness (N·m), damping (s).
+
+    ``stretch`` and ``rest_stretch`` are a number or [along u (warp), along v (weft)];
+    ``rest_stretch`` holds Baraff–Witkin's rest length factors b_u, b_v.
+    """
 
     density: float = _field(0.2, _number(minimum=0, exclusive=True))
-    stretch: float = _field(5000.0, _number(minimum=0))
+    stretch: float | tuple = _field(5000.0, _warp_weft(exclusive=False))
+    rest_stretch: float | tuple = _field(1.0, _warp_weft(exclusive=True))
     shear: float = _field(50.0, _number(minimum=0))
     bend: float = _field(1.0e-5, _number(minimum=0))
     damping: float = _field(0.01, _number(minimum=0))
@@ -291,7 +316,8 @@ class Solver:
     ``integrator``: ``bdf2`` (second order, the default) or ``euler`` (backward Euler),
     each the minimisation of its incremental potential by Newton's method: at most
     ``newton_iterations`` Newton steps per solver step, stopping when the largest
-    velocity correction max|Δx|/h is below ``newton_tolerance`` (m/s); each Newton
+    velocity correction max|Δx|/h and the Newton decrement as a velocity
+    √(Δxᵀ H Δx / free mass) are below ``newton_tolerance`` (m/s); each Newton
     step is a PCG solve whose relative residual ``tolerance`` is the finest it asks
     for (later Newton steps ask for less: Eisenstat–Walker); ``preconditioner`` is
     block Jacobi or an aggregation multigrid V-cycle. ``newton_iterations: 1`` is
@@ -304,7 +330,9 @@ class Solver:
     ``pbd_variant`` (gauss-seidel or jacobi), ``relaxation`` (Jacobi α),
     ``pbd_stiffness`` (0, 1] and ``strain_limit`` (ε: structural springs kept in
     [1 − ε, 1 + ε] of their rest length; 0 = off); ``explicit`` splits each step
-    into internal steps of at most ``cfl`` × its estimated critical step (0 = off).
+    into internal steps of at most ``cfl`` × its estimated critical step (0 = off);
+    ``vbd`` runs ``iterations`` vertex sweeps per step, Chebyshev-accelerated with
+    spectral radius estimate ``chebyshev_rho`` (0 = off).
     """
 
     method: str = _field("implicit", _choice(METHODS))
@@ -318,12 +346,13 @@ class Solver:
     line_search: bool = _field(True, _flag)
     max_speed: float = _field(1000.0, _number(minimum=0, exclusive=True))
     # the alternative methods (clothtool.sim.solvers, docs/solvers.md); ignored by the others
-    iterations: int = _field(10, _integer(minimum=1))  # pbd, xpbd, projective: sweeps per step
+    iterations: int = _field(10, _integer(minimum=1))  # pbd, xpbd, projective, vbd: sweeps per step
     pbd_variant: str = _field("gauss-seidel", _choice(PBD_VARIANTS))  # pbd
     relaxation: float = _field(1.0, _number(minimum=0))  # pbd jacobi: α in Σ Δ / (n_i + α)
     pbd_stiffness: float = _field(1.0, _number(minimum=0, exclusive=True, maximum=1))  # pbd
     strain_limit: float = _field(0.0, _number(minimum=0, maximum=1))  # pbd: ε, 0 = off
     cfl: float = _field(0.5, _number(minimum=0, maximum=1))  # explicit: 0 = no automatic steps
+    chebyshev_rho: float = _field(0.0, _below_one)  # vbd: Chebyshev ρ in [0, 1), 0 = off
 
 
 @dataclass(frozen=True)

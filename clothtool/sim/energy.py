@@ -26,7 +26,7 @@ def fem_elastic_energy(model, x):
     total = 0.0
     if model.has_membrane:
         total += membrane_total_energy(x, model.faces, model.dr_inv, model.area,
-                                       model.k_stretch, model.k_shear)
+                                       model.stretch, model.k_shear)
     if model.bend_model == "dihedral":
         total += dihedral_total_energy(x, model.hinge, model.hinge_rest_angle, model.hinge_coef)
     elif model.bend_model == "quadratic":  # an empty gradient array: energy only
@@ -55,7 +55,7 @@ class FemElastic:
             values[:] = 0.0
         total = 0.0
         if model.has_membrane:
-            total += membrane_assemble(x, model.faces, model.dr_inv, model.area, model.k_stretch,
+            total += membrane_assemble(x, model.faces, model.dr_inv, model.area, model.stretch,
                                        model.k_shear, model.tri_slots, grad, values)
         if model.bend_model == "dihedral":
             total += dihedral_assemble(x, model.hinge, model.hinge_rest_angle, model.hinge_coef,

@@ -5,16 +5,20 @@ With rest edge matrix D_r (from uv) and deformed edge matrix D_d = [x1 − x0, x
 the 3×2 deformation gradient F = D_d D_r⁻¹ has columns f0 = w_u, f1 = w_v (warp, weft).
 Energy densities (J/m², stiffnesses in N/m), integrated over the rest area A:
 
-    Ψ_stretch = k_s/2 · [(‖f0‖ − 1)² + (‖f1‖ − 1)²]
+    Ψ_stretch = k_u/2 · (‖f0‖ − b_u)² + k_v/2 · (‖f1‖ − b_v)²
     Ψ_shear   = k_h/2 · (f0·f1)²
 
-Baraff–Witkin's conditions C = a(‖w_u‖ − 1), C = a w_u·w_v scale with the square of
-the triangle area; these densities do not, so refining a mesh converges.
+with warp and weft stiffnesses k_u, k_v and Baraff–Witkin's rest length factors
+b_u, b_v (the stretch conditions C_u = a(‖w_u‖ − b_u), C_v = a(‖w_v‖ − b_v) of
+Baraff & Witkin 1998, "Large steps in cloth simulation", §4.2); the kernels take them
+as one array ``stretch`` = (k_u, k_v, b_u, b_v). Baraff–Witkin's conditions scale
+with the square of the triangle area; these densities do not, so refining a mesh
+converges.
 
 Hessians w.r.t. vec F = (f0, f1), closed-form eigensystems (Kim 2020 §4–5):
 
-- stretch, per column f: k_s[f̂f̂ᵀ + (1 − 1/‖f‖)(I − f̂f̂ᵀ)]; eigenvalue k_s along f̂,
-  k_s(1 − 1/‖f‖) twice across it (negative under compression, clamped at 0);
+- stretch, per column f with its (k, b): k[f̂f̂ᵀ + (1 − b/‖f‖)(I − f̂f̂ᵀ)]; eigenvalue k
+  along f̂, k(1 − b/‖f‖) twice across it (negative when ‖f‖ < b, clamped at 0);
 - shear: k_h[ggᵀ + s·H₆] with s = f0·f1, g = (f1, f0), H₆ = [[0, I], [I, 0]].
   With u = f0 + f1, w = f1 − f0: eigenvalue s on the +1 space of H₆ less
   ŝ = (u, u)/√(2‖u‖²), −s on the −1 space less d̂ = (w, −w)/√(2‖w‖²), and on
@@ -44,36 +48,37 @@ def _deformation(x0, x1, x2, dr_inv):
 
 
 @njit(cache=True)
-def _density(f0, f1, k_stretch, k_shear):
+def _density(f0, f1, stretch, k_shear):
     n0 = np.sqrt(dot(f0, f0))
     n1 = np.sqrt(dot(f1, f1))
     s = dot(f0, f1)
-    return 0.5 * k_stretch * ((n0 - 1.0) ** 2 + (n1 - 1.0) ** 2) + 0.5 * k_shear * s * s
+    return (0.5 * stretch[0] * (n0 - stretch[2]) ** 2 + 0.5 * stretch[1] * (n1 - stretch[3]) ** 2
+            + 0.5 * k_shear * s * s)
 
 
 @njit(cache=True)
-def _stress(f0, f1, k_stretch, k_shear):
-    """∂Ψ/∂f0 = k_s(‖f0‖ − 1) f0/‖f0‖ + k_h s f1 and ∂Ψ/∂f1 (s = f0·f1)."""
+def _stress(f0, f1, stretch, k_shear):
+    """∂Ψ/∂f0 = k_u(‖f0‖ − b_u) f0/‖f0‖ + k_h s f1 and ∂Ψ/∂f1 (s = f0·f1)."""
     n0 = max(np.sqrt(dot(f0, f0)), EPS)
     n1 = max(np.sqrt(dot(f1, f1)), EPS)
     s = dot(f0, f1)
-    g0 = add(scale(k_stretch * (n0 - 1.0) / n0, f0), scale(k_shear * s, f1))
-    g1 = add(scale(k_stretch * (n1 - 1.0) / n1, f1), scale(k_shear * s, f0))
+    g0 = add(scale(stretch[0] * (n0 - stretch[2]) / n0, f0), scale(k_shear * s, f1))
+    g1 = add(scale(stretch[1] * (n1 - stretch[3]) / n1, f1), scale(k_shear * s, f0))
     return g0, g1
 
 
 @njit(cache=True)
-def membrane_energy(x0, x1, x2, dr_inv, area, k_stretch, k_shear):
-    """A · (Ψ_stretch + Ψ_shear) of one triangle."""
+def membrane_energy(x0, x1, x2, dr_inv, area, stretch, k_shear):
+    """A · (Ψ_stretch + Ψ_shear) of one triangle; stretch = (k_u, k_v, b_u, b_v)."""
     f0, f1, _, _ = _deformation(x0, x1, x2, dr_inv)
-    return area * _density(f0, f1, k_stretch, k_shear)
+    return area * _density(f0, f1, stretch, k_shear)
 
 
 @njit(cache=True)
-def _stretch_block(f, k, project, out, offset):
-    """Add k[f̂f̂ᵀ + c(I − f̂f̂ᵀ)], c = 1 − 1/‖f‖ (clamped at 0 when projecting), at (offset, offset)."""
+def _stretch_block(f, k, b, project, out, offset):
+    """Add k[f̂f̂ᵀ + c(I − f̂f̂ᵀ)], c = 1 − b/‖f‖ (clamped at 0 when projecting), at (offset, offset)."""
     n2 = max(dot(f, f), EPS * EPS)
-    c = 1.0 - 1.0 / np.sqrt(n2)
+    c = 1.0 - b / np.sqrt(n2)
     if project and c < 0.0:
         c = 0.0
     for p in range(3):
@@ -143,19 +148,21 @@ def _shear_hessian(f0, f1, k, project, out):
 
 
 @njit(cache=True)
-def membrane_element(x0, x1, x2, dr_inv, area, k_stretch, k_shear, project, grad, hess, h_f):
+def membrane_element(x0, x1, x2, dr_inv, area, stretch, k_shear, project, grad, hess, h_f):
     """Energy of one triangle; writes its gradient (9,) and Hessian (9, 9) (vertex-major).
 
+    ``stretch`` = (k_u, k_v, b_u, b_v): warp and weft stiffnesses and rest length factors.
     ``project``: PSD-project the Hessian through the closed-form eigensystems.
     ``h_f`` (6, 6) is workspace; it is left holding ∂²Ψ/∂vec F².
     """
     f0, f1, alpha, beta = _deformation(x0, x1, x2, dr_inv)
-    energy = area * _density(f0, f1, k_stretch, k_shear)
-    g0, g1 = _stress(f0, f1, k_stretch, k_shear)
+    energy = area * _density(f0, f1, stretch, k_shear)
+    g0, g1 = _stress(f0, f1, stretch, k_shear)
     h_f[:, :] = 0.0
-    if k_stretch > 0.0:
-        _stretch_block(f0, k_stretch, project, h_f, 0)
-        _stretch_block(f1, k_stretch, project, h_f, 3)
+    if stretch[0] > 0.0:
+        _stretch_block(f0, stretch[0], stretch[2], project, h_f, 0)
+    if stretch[1] > 0.0:
+        _stretch_block(f1, stretch[1], stretch[3], project, h_f, 3)
     if k_shear > 0.0:
         _shear_hessian(f0, f1, k_shear, project, h_f)
     # chain rule through f0 = Σ α_v x_v, f1 = Σ β_v x_v
@@ -176,7 +183,7 @@ def membrane_element(x0, x1, x2, dr_inv, area, k_stretch, k_shear, project, grad
 
 
 @njit(cache=True)
-def membrane_assemble(x, faces, dr_inv, area, k_stretch, k_shear, slots, grad, values):
+def membrane_assemble(x, faces, dr_inv, area, stretch, k_shear, slots, grad, values):
     """W_membrane(x); adds its gradient to grad (N, 3) and projected Hessian blocks to values."""
     g = np.empty(9)
     hess = np.empty((9, 9))
@@ -184,7 +191,7 @@ def membrane_assemble(x, faces, dr_inv, area, k_stretch, k_shear, slots, grad, v
     total = 0.0
     for t in range(faces.shape[0]):
         total += membrane_element(load(x, faces[t, 0]), load(x, faces[t, 1]), load(x, faces[t, 2]),
-                                  dr_inv[t], area[t], k_stretch, k_shear, True, g, hess, work)
+                                  dr_inv[t], area[t], stretch, k_shear, True, g, hess, work)
         for a in range(3):
             v = faces[t, a]
             for p in range(3):
@@ -198,13 +205,13 @@ def membrane_assemble(x, faces, dr_inv, area, k_stretch, k_shear, slots, grad, v
 
 
 @njit(cache=True)
-def membrane_gradient(x, faces, dr_inv, area, k_stretch, k_shear, grad):
+def membrane_gradient(x, faces, dr_inv, area, stretch, k_shear, grad):
     """Adds ∇W_membrane to grad (N, 3), without the Hessian (the gradient of
     :func:`membrane_element`: A (α_v ∂Ψ/∂f0 + β_v ∂Ψ/∂f1) at vertex v)."""
     for t in range(faces.shape[0]):
         f0, f1, alpha, beta = _deformation(load(x, faces[t, 0]), load(x, faces[t, 1]),
                                            load(x, faces[t, 2]), dr_inv[t])
-        g0, g1 = _stress(f0, f1, k_stretch, k_shear)
+        g0, g1 = _stress(f0, f1, stretch, k_shear)
         a = area[t]
         for v in range(3):
             vi = faces[t, v]
@@ -213,7 +220,7 @@ def membrane_gradient(x, faces, dr_inv, area, k_stretch, k_shear, grad):
 
 
 @njit(cache=True)
-def membrane_hessian_product(x, faces, dr_inv, area, k_stretch, k_shear, scale_by, v, out):
+def membrane_hessian_product(x, faces, dr_inv, area, stretch, k_shear, scale_by, v, out):
     """out += scale_by · K_membrane(x) v, element by element (the projected Hessians of
     :func:`membrane_element`, not assembled)."""
     g = np.empty(9)
@@ -221,7 +228,7 @@ def membrane_hessian_product(x, faces, dr_inv, area, k_stretch, k_shear, scale_b
     work = np.empty((6, 6))
     for t in range(faces.shape[0]):
         membrane_element(load(x, faces[t, 0]), load(x, faces[t, 1]), load(x, faces[t, 2]),
-                         dr_inv[t], area[t], k_stretch, k_shear, True, g, hess, work)
+                         dr_inv[t], area[t], stretch, k_shear, True, g, hess, work)
         for a in range(3):
             ia = faces[t, a]
             for p in range(3):
@@ -234,11 +241,11 @@ def membrane_hessian_product(x, faces, dr_inv, area, k_stretch, k_shear, scale_b
 
 
 @njit(cache=True)
-def membrane_total_energy(x, faces, dr_inv, area, k_stretch, k_shear):
+def membrane_total_energy(x, faces, dr_inv, area, stretch, k_shear):
     total = 0.0
     for t in range(faces.shape[0]):
         total += membrane_energy(load(x, faces[t, 0]), load(x, faces[t, 1]), load(x, faces[t, 2]),
-                                 dr_inv[t], area[t], k_stretch, k_shear)
+                                 dr_inv[t], area[t], stretch, k_shear)
     return total
 
 

@@ -17,6 +17,8 @@ pbd            Position Based Dynamics, Gauss–Seidel or Jacobi, strain limitin
 xpbd           extended PBD: compliant constraints, same springs as mass-spring
 projective     Projective Dynamics: constant prefactored matrix, local projections
 explicit       symplectic Euler with (automatic) internal steps, the baseline
+vbd            Vertex Block Descent: per-vertex 3×3 Newton steps on implicit's
+               incremental potential, in graph-colour order (Chen et al. 2024)
 =============  ==================================================================
 
 See ``docs/solvers.md`` for the choice between them.
@@ -60,6 +62,8 @@ METHODS = {m.name: m for m in (
            summary="Projective Dynamics"),
     Method("explicit", "clothtool.sim.solvers.explicit:SymplecticEuler",
            summary="symplectic Euler with automatic internal steps"),
+    Method("vbd", "clothtool.sim.solvers.vbd:VertexBlockDescent",
+           summary="Vertex Block Descent on the finite-element cloth"),
 )}
 
 

@@ -32,7 +32,7 @@ class Model:
     dr_inv: np.ndarray  # (M, 2, 2) D_r⁻¹
     area: np.ndarray  # (M,) rest areas
     mass: np.ndarray  # (N,) lumped masses
-    k_stretch: float
+    stretch: np.ndarray  # (4,) k_u, k_v (N/m, warp and weft), b_u, b_v (rest length factors)
     k_shear: float
     damping: float  # s
     gravity: np.ndarray  # (3,)
@@ -78,7 +78,7 @@ class Model:
 
     @property
     def has_membrane(self):
-        return self.k_stretch > 0.0 or self.k_shear > 0.0
+        return self.stretch[0] > 0.0 or self.stretch[1] > 0.0 or self.k_shear > 0.0
 
     @property
     def has_pins(self):
@@ -157,7 +157,7 @@ def build_model(config):
 
     return Model(
         mesh=mesh, dr_inv=dr_inv, area=area, mass=mass,
-        k_stretch=mat.stretch, k_shear=mat.shear, damping=mat.damping,
+        stretch=_warp_weft(mat, mesh), k_shear=mat.shear, damping=mat.damping,
         gravity=np.asarray(config.scene.gravity, dtype=np.float64),
         bend_model=bend_model, hinge=hinge, hinge_rest_angle=rest_angle, hinge_coef=coef,
         hinge_weights=weights, pinned=pinned, free=free, kind=kind,
@@ -167,6 +167,18 @@ def build_model(config):
         pattern=pattern, tri_slots=tri_slots, hinge_slots=hinge_slots, constant_hessian=constant,
         pin_motions=pin_motions, contact=build_contact_scene(config, mesh),
     )
+
+
+def _warp_weft(material, mesh):
+    """(k_u, k_v, b_u, b_v) from material.stretch and material.rest_stretch (a number: both)."""
+    k = np.broadcast_to(np.asarray(material.stretch, dtype=np.float64), 2)
+    b = np.broadcast_to(np.asarray(material.rest_stretch, dtype=np.float64), 2)
+    if mesh.uv is None:  # no u and v: each triangle is measured in its own tangent frame
+        for key, pair in (("stretch", k), ("rest_stretch", b)):
+            if pair[0] != pair[1]:
+                raise InputError(f"material.{key}: different warp and weft values need rest uv "
+                                 "(a grid, or a PLY with texture coordinates)")
+    return np.concatenate([k, b])
 
 
 def _bending(mesh, area, material):

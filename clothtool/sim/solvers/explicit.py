@@ -54,10 +54,10 @@ def elastic_forces(model, x, v, out):
     beta = model.damping
     out[:] = 0.0
     if model.has_membrane:
-        membrane_gradient(x, model.faces, model.dr_inv, model.area, model.k_stretch,
+        membrane_gradient(x, model.faces, model.dr_inv, model.area, model.stretch,
                           model.k_shear, out)
         if beta > 0.0:
-            membrane_hessian_product(x, model.faces, model.dr_inv, model.area, model.k_stretch,
+            membrane_hessian_product(x, model.faces, model.dr_inv, model.area, model.stretch,
                                      model.k_shear, beta, v, out)
     if model.bend_model == "dihedral":
         dihedral_gradient(x, model.hinge, model.hinge_rest_angle, model.hinge_coef, out, v, beta,

@@ -9,12 +9,16 @@ Stiffness from the material (N/m per unit area, so refining the mesh keeps the
 material): an edge of rest length L whose adjacent rest triangles have total area
 A, at angle θ to the warp (u) direction of the rest coordinates, gets
 
-    k_e = (k_stretch cos²2θ + 4 k_shear sin²2θ) · A / L²
+    k_e = ((k_u cos²θ + k_v sin²θ) cos²2θ + 4 k_shear sin²2θ) · A / L²
 
-so on a grid the axis edges are the structural springs (k_e = k_stretch in the
-interior, reproducing the membrane's uniaxial stiffness) and the diagonals are
+(k_u, k_v: material.stretch along u and v) so on a grid the axis edges are the
+structural springs (k_e = k_u along u, k_v along v in the interior, reproducing the
+membrane's uniaxial stiffnesses) and the diagonals are
 the shear springs (4 k_shear A/L² = 2 k_shear reproduces Ψ_shear = k_h/2 (f0·f1)²
-to first order). A mesh without rest uv treats every edge as structural. A bend
+to first order). A mesh without rest uv treats every edge as structural. The rest
+length factors b_u, b_v (material.rest_stretch) make every spring's rest length that
+of the rest state F = diag(b_u, b_v): ‖(b_u Δu, b_v Δv)‖ for an edge (Δu, Δv) of the
+rest uv (b‖e‖ without uv, where b_u = b_v). A bend
 spring gets k_e = 2c/L_kl², with c = k_bend ‖ē‖²/(2(Ā_k + Ā_l)) the hinge's dihedral
 coefficient (so ½k_e(L_kl θ)² = cθ²): a dimensional stand-in, not a calibrated
 bending model — a spring across a flat hinge resists bending only to second order
@@ -69,12 +73,15 @@ def build_springs(model):
     adj_area = np.bincount(inverse, weights=np.repeat(model.area, 3), minlength=len(uniq))
     d = rest3d[ej] - rest3d[ei]
     length = np.sqrt(np.einsum("ij,ij->i", d, d))
+    k_u, k_v, b_u, b_v = model.stretch
     if model.mesh.uv is not None:
         theta = np.arctan2(d[:, 1], d[:, 0])
         cos2 = np.cos(2.0 * theta) ** 2
+        k_axis = k_u * np.cos(theta) ** 2 + k_v * np.sin(theta) ** 2
     else:
         cos2 = np.ones(len(uniq))
-    k = (model.k_stretch * cos2 + 4.0 * model.k_shear * (1.0 - cos2)) * adj_area / length ** 2
+        k_axis = np.full(len(uniq), k_u)  # the Model has k_u = k_v, b_u = b_v without uv
+    k = (k_axis * cos2 + 4.0 * model.k_shear * (1.0 - cos2)) * adj_area / length ** 2
     structural = cos2 >= 0.5
     n_bend = 0
     if model.bend_model is not None and len(model.hinge):
@@ -83,9 +90,11 @@ def build_springs(model):
         lb = np.sqrt(np.einsum("ij,ij->i", db, db))
         kb = 2.0 * model.hinge_coef / lb ** 2
         ei, ej = np.concatenate([ei, bi]), np.concatenate([ej, bj])
-        length, k = np.concatenate([length, lb]), np.concatenate([k, kb])
+        d, length, k = np.concatenate([d, db]), np.concatenate([length, lb]), np.concatenate([k, kb])
         structural = np.concatenate([structural, np.zeros(len(bi), np.bool_)])
         n_bend = len(bi)
+    # rest lengths of the rest state F = diag(b_u, b_v): an edge (du, dv) rests at ‖(b_u du, b_v dv)‖
+    length = np.sqrt((b_u * d[:, 0]) ** 2 + (b_v * d[:, 1]) ** 2 + (b_u * d[:, 2]) ** 2)
     keep = k > 0.0
     if not np.all(keep):  # e.g. shear = 0: diagonals carry nothing
         ei, ej, length, k, structural = ei[keep], ej[keep], length[keep], k[keep], structural[keep]
@@ -144,6 +153,38 @@ def spring_assemble(x, si, sj, rest, k, slots, grad, values):
 # ---------------------------------------------------------------------------- PBD / XPBD
 
 
+@njit(cache=True, inline="always")
+def _spring_vector(x, i, j, inv_mass):
+    """(ok, w_i + w_j, d = x_i − x_j, ‖d‖); not ok when both ends are pinned or ‖d‖ < EPS."""
+    wsum = inv_mass[i] + inv_mass[j]
+    d0, d1, d2 = x[i, 0] - x[j, 0], x[i, 1] - x[j, 1], x[i, 2] - x[j, 2]
+    length = np.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+    return wsum != 0.0 and length >= EPS, wsum, d0, d1, d2, length
+
+
+@njit(cache=True, inline="always")
+def _correction(x, i, j, rest, stiff, inv_mass):
+    """PBD distance-constraint correction of spring (i, j) (Müller et al. 2007): with
+    d = x_i − x_j and s = k'(‖d‖ − L)/(‖d‖(w_i + w_j)), x_i −= s w_i d, x_j += s w_j d.
+    Returns (ok, s·w_i, s·w_j, d); not ok when both ends are pinned or ‖d‖ ≈ 0."""
+    ok, wsum, d0, d1, d2, length = _spring_vector(x, i, j, inv_mass)
+    if not ok:
+        return False, 0.0, 0.0, d0, d1, d2
+    s = stiff * (length - rest) / (length * wsum)
+    return True, s * inv_mass[i], s * inv_mass[j], d0, d1, d2
+
+
+@njit(cache=True, inline="always")
+def _move(y, i, j, wi, wj, d0, d1, d2):
+    """y_i −= w_i d, y_j += w_j d."""
+    y[i, 0] -= wi * d0
+    y[i, 1] -= wi * d1
+    y[i, 2] -= wi * d2
+    y[j, 0] += wj * d0
+    y[j, 1] += wj * d1
+    y[j, 2] += wj * d2
+
+
 @njit(cache=True)
 def pbd_gauss_seidel(x, si, sj, rest, stiff, inv_mass, backward):
     """One Gauss–Seidel sweep of distance constraints (Müller et al. 2007).
@@ -157,21 +198,10 @@ def pbd_gauss_seidel(x, si, sj, rest, stiff, inv_mass, backward):
     for r in range(m):
         e = m - 1 - r if backward else r
         i, j = si[e], sj[e]
-        wsum = inv_mass[i] + inv_mass[j]
-        if wsum == 0.0:
+        ok, wi, wj, d0, d1, d2 = _correction(x, i, j, rest[e], stiff[e], inv_mass)
+        if not ok:
             continue
-        d0, d1, d2 = x[i, 0] - x[j, 0], x[i, 1] - x[j, 1], x[i, 2] - x[j, 2]
-        length = np.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
-        if length < EPS:
-            continue
-        s = stiff[e] * (length - rest[e]) / (length * wsum)
-        wi, wj = s * inv_mass[i], s * inv_mass[j]
-        x[i, 0] -= wi * d0
-        x[i, 1] -= wi * d1
-        x[i, 2] -= wi * d2
-        x[j, 0] += wj * d0
-        x[j, 1] += wj * d1
-        x[j, 2] += wj * d2
+        _move(x, i, j, wi, wj, d0, d1, d2)
 
 
 @njit(cache=True)
@@ -183,21 +213,10 @@ def pbd_jacobi(x, si, sj, rest, stiff, inv_mass, relaxation, delta, count):
     count[:] = 0.0
     for e in range(si.shape[0]):
         i, j = si[e], sj[e]
-        wsum = inv_mass[i] + inv_mass[j]
-        if wsum == 0.0:
+        ok, wi, wj, d0, d1, d2 = _correction(x, i, j, rest[e], stiff[e], inv_mass)
+        if not ok:
             continue
-        d0, d1, d2 = x[i, 0] - x[j, 0], x[i, 1] - x[j, 1], x[i, 2] - x[j, 2]
-        length = np.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
-        if length < EPS:
-            continue
-        s = stiff[e] * (length - rest[e]) / (length * wsum)
-        wi, wj = s * inv_mass[i], s * inv_mass[j]
-        delta[i, 0] -= wi * d0
-        delta[i, 1] -= wi * d1
-        delta[i, 2] -= wi * d2
-        delta[j, 0] += wj * d0
-        delta[j, 1] += wj * d1
-        delta[j, 2] += wj * d2
+        _move(delta, i, j, wi, wj, d0, d1, d2)
         count[i] += 1.0
         count[j] += 1.0
     for v in range(x.shape[0]):
@@ -216,12 +235,8 @@ def strain_limit_pass(x, si, sj, rest, limited, inv_mass, lo, hi):
         if not limited[e]:
             continue
         i, j = si[e], sj[e]
-        wsum = inv_mass[i] + inv_mass[j]
-        if wsum == 0.0:
-            continue
-        d0, d1, d2 = x[i, 0] - x[j, 0], x[i, 1] - x[j, 1], x[i, 2] - x[j, 2]
-        length = np.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
-        if length < EPS:
+        ok, wsum, d0, d1, d2, length = _spring_vector(x, i, j, inv_mass)
+        if not ok:
             continue
         if length > hi * rest[e]:
             target = hi * rest[e]
@@ -231,12 +246,7 @@ def strain_limit_pass(x, si, sj, rest, limited, inv_mass, lo, hi):
             continue
         s = (length - target) / (length * wsum)
         wi, wj = s * inv_mass[i], s * inv_mass[j]
-        x[i, 0] -= wi * d0
-        x[i, 1] -= wi * d1
-        x[i, 2] -= wi * d2
-        x[j, 0] += wj * d0
-        x[j, 1] += wj * d1
-        x[j, 2] += wj * d2
+        _move(x, i, j, wi, wj, d0, d1, d2)
 
 
 @njit(cache=True)
@@ -251,12 +261,8 @@ def xpbd_sweep(x, x_n, si, sj, rest, alpha_tilde, gamma, inv_mass, lam, backward
     for r in range(m):
         e = m - 1 - r if backward else r
         i, j = si[e], sj[e]
-        wsum = inv_mass[i] + inv_mass[j]
-        if wsum == 0.0:
-            continue
-        d0, d1, d2 = x[i, 0] - x[j, 0], x[i, 1] - x[j, 1], x[i, 2] - x[j, 2]
-        length = np.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
-        if length < EPS:
+        ok, wsum, d0, d1, d2, length = _spring_vector(x, i, j, inv_mass)
+        if not ok:
             continue
         n0, n1, n2 = d0 / length, d1 / length, d2 / length
         c = length - rest[e]
@@ -270,12 +276,7 @@ def xpbd_sweep(x, x_n, si, sj, rest, alpha_tilde, gamma, inv_mass, lam, backward
         dlam = num / ((1.0 + g) * wsum + at)
         lam[e] += dlam
         wi, wj = dlam * inv_mass[i], dlam * inv_mass[j]
-        x[i, 0] += wi * n0
-        x[i, 1] += wi * n1
-        x[i, 2] += wi * n2
-        x[j, 0] -= wj * n0
-        x[j, 1] -= wj * n1
-        x[j, 2] -= wj * n2
+        _move(x, i, j, -wi, -wj, n0, n1, n2)
 
 
 # ---------------------------------------------------------------------------- PD

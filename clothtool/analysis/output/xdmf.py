@@ -16,8 +16,8 @@ ParaView 5.11) cannot read a ``HyperSlab`` DataItem, while the legacy "XDMF Read
 (vtkXdmfReader) reads both forms; with views, both readers load every step.
 
 Cell topologies are listed in :data:`TOPOLOGIES` (triangles ``/mesh/faces`` with cell data
-``/face``; a tetrahedral mesh ``/mesh/tets`` with cell data ``/tet`` would be read the same
-way). A result with several of them gets, per step, a spatial collection of one grid each.
+``/face``; a tetrahedral result's ``/mesh/tets`` with cell data ``/tet``). A result with
+several of them gets, per step, a spatial collection of one grid each.
 """
 
 import os
@@ -115,18 +115,31 @@ def _item(h5_name, name, shape, dtype):
 
 def _fields(h5, n_pairs, counts):
     """[(dataset, group, short name, center, AttributeType, view shape)] of the per-pair cell
-    and point data."""
+    and point data, in :func:`_attribute_keys` order."""
     out = []
-    for group, center in CENTERS:
-        if group not in h5 or group not in counts:
+    for key, center in _attribute_keys(h5):
+        group, name = key.split("/")
+        if group not in counts:
             continue
-        for name in h5[group]:
-            ds = h5[group][name]
-            shape = ds.shape
-            if len(shape) >= 2 and shape[:2] == (n_pairs, counts[group]):
-                kind, item = _kind(shape[2:])
-                out.append((ds, group, name, center, kind, (shape[1], *item)))
+        ds = h5[key]
+        shape = ds.shape
+        if len(shape) >= 2 and shape[:2] == (n_pairs, counts[group]):
+            kind, item = _kind(shape[2:])
+            out.append((ds, group, name, center, kind, (shape[1], *item)))
     return out
+
+
+def _attribute_keys(h5):
+    """(dataset path, XDMF center) of the face and vertex datasets in ``h5``: the registry's
+    fields and their vertex averages in registry order, then any others."""
+    from clothtool.analysis.fields import REGISTRY
+    from clothtool.analysis.output.vertex_average import SUFFIX
+
+    centers = dict(CENTERS)
+    known = [f.key for f in REGISTRY] + [f"vertex/{f.name}{SUFFIX}" for f in REGISTRY if f.averageable]
+    found = [f"{group}/{name}" for group in centers if group in h5 for name in h5[group]]
+    keys = [k for k in known if k in found] + [k for k in found if k not in known]
+    return [(key, centers[key.split("/")[0]]) for key in keys]
 
 
 def xdmf_text(h5, h5_name):
@@ -160,7 +173,7 @@ def xdmf_text(h5, h5_name):
                    if view_name(p, what) not in h5]
         if missing:
             raise InputError(f"{h5.filename}: no /{missing[0]}; write the XDMF with the "
-                             "result open for writing (clothtool.results.xdmf.write_xdmf)")
+                             "result open for writing (clothtool.analysis.output.xdmf.write_xdmf)")
 
     topologies = {group: f'<Topology TopologyType="{kind}" NumberOfElements="{topology.shape[0]}">\n'
                          f'  {_item(h5_name, topology.name[1:], topology.shape, topology.dtype)}\n'

@@ -23,12 +23,13 @@ def parse_pair_slice(spec, total):
             start = int(head) if head.strip() else 0
             stop = int(tail) if tail.strip() else total
         except ValueError:
-            raise InputError(f"--pairs: {spec!r} is not START:STOP (for example 0:100)") from None
+            raise InputError(f"{spec!r} is not START:STOP (for example 0:100)",
+                             keyword="pairs") from None
     else:
         start, stop = (int(v) for v in spec)
     if start < 0 or stop < 0:
-        raise InputError(f"--pairs {start}:{stop}: negative pair index")
+        raise InputError("negative pair index", keyword="pairs", value=f"{start}:{stop}")
     if start >= min(stop, total):
-        raise InputError(f"--pairs {start}:{stop}: no pairs in this slice "
-                         f"(the sequence has {total} pairs, 0:{total})")
+        raise InputError(f"no pairs in this slice (the sequence has {total} pairs, 0:{total})",
+                         keyword="pairs", value=f"{start}:{stop}")
     return start, min(stop, total)

@@ -3,32 +3,32 @@
 - ``/frame_vertices`` (T, N, 3), storage dtype, chunked per frame: the positions of every
   frame, written once, as it is read (frames a ``--pairs`` slice does not read stay NaN);
   the XDMF's geometry.
-- ``/summary``: :mod:`clothtool.results.summary`.
-- ``/vertex/<field>_avg`` (P, N, …): :mod:`clothtool.results.vertex_average`, if asked for.
+- ``/summary``: :mod:`clothtool.analysis.output.summary`.
+- ``/vertex/<field>_avg`` (P, N, …): :mod:`clothtool.analysis.output.vertex_average`, if asked for.
 """
 
 import numpy as np
 
 from clothtool.io.h5 import create_pair_dataset
-from clothtool.results.summary import SummaryWriter
-from clothtool.results.vertex_average import SUFFIX, VertexAverager, rest_areas
-
-NEEDED = ("stretch", "area_ratio", "flags")  # face fields computed for /summary even if not stored
+from clothtool.analysis.output.summary import SummaryWriter
+from clothtool.analysis.output.vertex_average import SUFFIX, VertexAverager, rest_areas
 
 
 class PairExtras:
     """Creates the datasets in the open result ``h5`` and fills them from each pair's buffers.
 
+    ``tets``: a tetrahedral result (summary over tetrahedra; ``faces`` None, nothing averaged).
     The vertex averages go through the caller's pair writer: :attr:`datasets` are its extra
     datasets and :meth:`buffers` its extra arrays, keyed ``vertex/<field>_avg``.
     """
 
     def __init__(self, h5, pairs, offset, n_frames, faces, n_vertices, averaged, store,
-                 compression):
+                 compression, tets=False):
         self.positions = create_pair_dataset(h5, "frame_vertices", n_frames, (n_vertices, 3),
                                              store, compression, fillvalue=np.nan)
         self.stored = np.zeros(n_frames, bool)
-        self.table = SummaryWriter(h5, pairs, offset)
+        self.table = SummaryWriter(h5, pairs, offset, tets=tets)
+        self.ratio = "volume_ratio" if tets else "area_ratio"
         self.averaged = averaged
         self.averager = VertexAverager(faces, n_vertices) if averaged else None
         self.shapes = {}
@@ -56,7 +56,7 @@ class PairExtras:
         (index, positions) of the pair's frames, stored if not yet (:meth:`frame`)."""
         for index, x in frames:
             self.frame(index, x)
-        self.table.add(p, buffers["stretch"], buffers["area_ratio"], buffers["flags"])
+        self.table.add(p, buffers["stretch"], buffers[self.ratio], buffers["flags"])
         if self.averaged:
             areas = rest_areas(dinv)
             for name in self.averaged:

@@ -9,10 +9,9 @@ a vertex with no such triangle gets NaN. Tensors are averaged component by compo
 
 import numpy as np
 
+from clothtool.analysis.fields import AVERAGEABLE
 from clothtool.errors import InputError
 
-AVERAGEABLE = ("F", "C", "U", "R", "strain", "stretch", "area_ratio")
-"""Face fields with a vertex average; ``directions`` (sign free) and ``flags`` (bits) have none."""
 SUFFIX = "_avg"  # /vertex/<field>_avg
 
 
@@ -23,8 +22,8 @@ def parse_vertex_average(names):
     names = [n.strip() for n in names.split(",")] if isinstance(names, str) else list(names)
     for n in names:
         if n not in AVERAGEABLE:
-            raise InputError(f"--vertex-average: no vertex average of {n!r}; choose from "
-                             f"{', '.join(AVERAGEABLE)}")
+            raise InputError(f"no vertex average of {n!r}; choose from {', '.join(AVERAGEABLE)}",
+                             keyword="vertex_average")
     return tuple(n for n in AVERAGEABLE if n in names)
 
 
