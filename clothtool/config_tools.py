@@ -47,10 +47,17 @@ material:
 scene:
   gravity: [0, -9.81, 0]        # m/s²
   pins: [top_corners]           # named vertex sets and/or vertex indices held in place
+  # moving pins (implicit): a group of vertices on a rigid motion of their initial positions,
+  #   - {vertices: left_edge, rotate: {center: [0, 0, 0], axis: [1, 0, 0], speed: 1.0472, until: 10.0}}
+  #   - {vertices: [12, 13], translate: {velocity: [0, 0, 0.5], until: 2.0}}
   colliders:
     - sphere: {center: [0, -0.5, 0], radius: 0.3}   # each may also set friction: 0.0
     - plane: {point: [0, -1, 0], normal: [0, 1, 0]}
+    # or triangle meshes (implicit; not together with spheres and planes), static or animated:
+    #   - mesh: {ply: body.ply, friction: 0.3}      (or obj: body.obj)
+    #   - mesh: {frames: body/, fps: 30, friction: 0.3}
   collision_margin: 1.0e-3      # m, vertices are kept this far outside every collider
+  self_collision: null          # cloth–cloth contact (implicit), e.g. {thickness: 0.002, friction: 0.2}
 
 solver:
   method: implicit      # implicit (Baraff–Witkin), mass-spring, pbd, xpbd, projective, explicit, vbd (docs/solvers.md)

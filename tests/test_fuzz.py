@@ -372,10 +372,30 @@ time: {fps: 30, frames: 120}
 output: {dir: out/, every: 1}
 """
 
+CONTACT_CONFIG = """\
+mesh:
+  grid: {nx: 6, ny: 5, width: 1.0, height: 0.8, plane: xz}
+scene:
+  gravity: [0, -9.81, 0]
+  pins:
+    - {vertices: left_edge, rotate: {center: [0, 0, 0], axis: [1, 0, 0], speed: 1.0472, until: 10.0}}
+    - {vertices: [12, 13], translate: {velocity: [0, 0, 0.5], until: 2.0}}
+  colliders:
+    - mesh: {ply: body.ply, friction: 0.3}
+    - mesh: {obj: body.obj}
+    - mesh: {frames: body/, fps: 30, friction: 0.3}
+  collision_margin: 1.0e-3
+  self_collision: {thickness: 0.002, friction: 0.2}
+solver: {method: implicit, newton_iterations: 8}
+time: {fps: 60, frames: 10}
+"""
+
 KEYS = ["mesh", "grid", "ply", "nx", "ny", "width", "height", "plane", "material", "density",
         "stretch", "rest_stretch", "shear", "bend", "damping", "scene", "gravity", "pins", "colliders", "sphere",
         "center", "radius", "point", "normal", "solver", "method", "substeps", "tolerance",
-        "max_iterations", "iterations", "chebyshev_rho", "time", "fps", "frames", "output", "dir", "every", "bogus", ""]
+        "max_iterations", "iterations", "chebyshev_rho", "time", "fps", "frames", "output", "dir", "every", "bogus", "",
+        "vertices", "rotate", "translate", "axis", "speed", "until", "velocity", "obj",
+        "friction", "self_collision", "thickness", "collision_margin"]
 SCALARS = (st.none() | st.booleans() | st.integers(-10**20, 10**20) | st.floats()
            | st.sampled_from(KEYS + ["xy", "top_corners", "1e5", "implicit", "vbd", "-0", "nan"])
            | st.text(max_size=8))
@@ -400,9 +420,10 @@ def config_outcome(load, source):
 
 
 @FUZZ
-@given(st.data())
-def test_mutated_config_text(load_config, tmp_path_factory, data):
-    text = bytearray(CONFIG.encode())
+@pytest.mark.parametrize("base", [CONFIG, CONTACT_CONFIG], ids=["plain", "contact"])
+@given(data=st.data())
+def test_mutated_config_text(load_config, tmp_path_factory, base, data):
+    text = bytearray(base.encode())
     for _ in range(data.draw(st.integers(1, 6))):
         at = data.draw(st.integers(0, len(text) - 1))
         kind = data.draw(st.sampled_from(["overwrite", "insert", "delete"]))
@@ -432,6 +453,21 @@ def test_one_section_replaced(load_config, section, value):
 
     raw = yaml.safe_load(CONFIG)
     raw[section] = value
+    config_outcome(load_config, raw)
+
+
+@FUZZ
+@given(st.sampled_from(["pins", "colliders", "self_collision", "collision_margin"]), VALUES,
+       st.integers(0, 2))
+def test_one_contact_key_replaced(load_config, key, value, index):
+    """The new scene keys, and one entry of the pin and collider lists, replaced at random."""
+    import yaml
+
+    raw = yaml.safe_load(CONTACT_CONFIG)
+    if key in ("pins", "colliders") and index < len(raw["scene"][key]):
+        raw["scene"][key][index] = value
+    else:
+        raw["scene"][key] = value
     config_outcome(load_config, raw)
 
 

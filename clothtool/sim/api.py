@@ -55,7 +55,7 @@ def simulate(config_or_path, *, output_dir=None, overrides=None, progress=True):
     from clothtool.sim.integrator import StepReport
     from clothtool.sim.methods import make_integrator
     from clothtool.sim.model import build_model
-    from clothtool.sim.output import FrameWriter
+    from clothtool.sim.output import CONTACT_COLUMNS, STATS_COLUMNS, FrameWriter
 
     if isinstance(config_or_path, Config):
         if overrides:
@@ -74,19 +74,24 @@ def simulate(config_or_path, *, output_dir=None, overrides=None, progress=True):
     step_times = []
     started = time.perf_counter()
 
-    with FrameWriter(out_dir, model.faces, model.mesh.uv) as writer:
+    contact = getattr(integrator, "contact", None)
+    columns = STATS_COLUMNS + (CONTACT_COLUMNS if contact is not None else ())
+    with FrameWriter(out_dir, model.faces, model.mesh.uv, columns) as writer:
 
         def record(frame, report, wall):
             nonlocal written, worst_stretch
             kinetic, elastic, gravity = integrator.energies(state)
             stretch = integrator.max_stretch(state)
             worst_stretch = max(worst_stretch, stretch)
+            if contact is not None:  # the exact test: no frame with a crossing is written
+                contact.check_frame(state.x, state.time, frame, out_dir)
             writer.write_frame(frame, state.x)
             writer.write_stats(dict(
                 frame=frame, time=state.time, kinetic=kinetic, elastic=elastic, gravity=gravity,
                 newton_iterations=report.newton_iterations, cg_iterations=report.cg_iterations,
                 residual=report.residual, max_stretch=stretch, wall_s=wall, sweeps=report.sweeps,
-                substeps=report.substeps))
+                substeps=report.substeps, contacts=report.contacts,
+                min_separation=report.min_separation))
             written += 1
 
         record(0, StepReport(), 0.0)

@@ -29,6 +29,7 @@ kernels underneath take the plain arrays these unpack to.
 import numpy as np
 from numba import njit
 
+from clothtool.contact.barrier import NO_OPERATOR, gauss_newton_offdiagonal_multiply
 from clothtool.sim.filter import PINNED, apply_filter
 from clothtool.sim.multigrid import NO_MULTIGRID, setup_levels, vcycle
 from clothtool.vec3 import inverse3
@@ -238,27 +239,38 @@ def _precondition(inv, r, kind, normal, constrained, z, mg):
         apply_filter(z, kind, normal)
 
 
-def filtered_pcg(matrix, b, x, constraints, tol, max_iter, preconditioner):
+def filtered_pcg(matrix, b, x, constraints, tol, max_iter, preconditioner, extra=NO_OPERATOR):
     """Solve S(A x − b) = 0 from x, whose constrained components (I − S)x stay as given.
 
     ``matrix``: a :class:`BlockMatrix`; ``constraints``: a :class:`ConstraintFilter`
     (S); ``preconditioner``: :class:`BlockJacobi` or a
-    :class:`~clothtool.sim.multigrid.Hierarchy`, set up here for this matrix and filter.
-    Stops when the true relative residual ‖S(b − Ax)‖ / ‖S b‖ ≤ ``tol`` or after
+    :class:`~clothtool.sim.multigrid.Hierarchy`, set up here for this matrix and filter;
+    ``extra``: off-diagonal contact blocks applied matrix-free
+    (:func:`~clothtool.contact.barrier.solve_operator`), whose diagonal blocks are already in
+    the matrix. Stops when the true relative residual ‖S(b − Ax)‖ / ‖S b‖ ≤ ``tol`` or after
     ``max_iter`` iterations. Returns (iterations, relative true residual).
     """
     preconditioner.setup(matrix, constraints)
     return filtered_pcg_arrays(matrix.pattern.row_ptr, matrix.pattern.col, matrix.values, b, x,
                                constraints.kind, constraints.normal, constraints.active, tol,
-                               max_iter, preconditioner.inverse, preconditioner.arrays)
+                               max_iter, preconditioner.inverse, preconditioner.arrays, extra)
+
+
+@njit(cache=True)
+def _residual_with(row_ptr, col, values, extra, b, x, r):
+    """r = b − (A + H_extra) x."""
+    residual(row_ptr, col, values, b, x, r)
+    if extra[2] > 0:
+        gauss_newton_offdiagonal_multiply(extra, x, r, -1.0)
 
 
 @njit(cache=True)
 def filtered_pcg_arrays(row_ptr, col, values, b, x, kind, normal, constrained, tol, max_iter,
-                        inv, mg):
+                        inv, mg, extra):
     """:func:`filtered_pcg` on plain arrays: ``constrained`` False skips the filter; ``inv``
     the block-Jacobi inverses (:func:`block_jacobi`) and ``mg`` ``NO_MULTIGRID``, or ``mg``
-    the arrays of a multigrid hierarchy after ``setup_levels``."""
+    the arrays of a multigrid hierarchy after ``setup_levels``; ``extra`` the matrix-free
+    contact blocks (``NO_OPERATOR`` for none)."""
     n = b.shape[0]
     sb = b.copy()
     if constrained:
@@ -267,7 +279,7 @@ def filtered_pcg_arrays(row_ptr, col, values, b, x, kind, normal, constrained, t
     r = np.empty((n, 3))
     z = np.empty((n, 3))
     q = np.empty((n, 3))
-    residual(row_ptr, col, values, b, x, r)
+    _residual_with(row_ptr, col, values, extra, b, x, r)
     if constrained:
         apply_filter(r, kind, normal)
     if b_norm == 0.0:
@@ -280,7 +292,7 @@ def filtered_pcg_arrays(row_ptr, col, values, b, x, kind, normal, constrained, t
     while it < max_iter:
         if res <= tol:
             # confirm on the true residual before stopping
-            residual(row_ptr, col, values, b, x, r)
+            _residual_with(row_ptr, col, values, extra, b, x, r)
             if constrained:
                 apply_filter(r, kind, normal)
             res = np.sqrt(_dot(r, r)) / b_norm
@@ -290,6 +302,8 @@ def filtered_pcg_arrays(row_ptr, col, values, b, x, kind, normal, constrained, t
             p[:] = z
             rz = _dot(r, z)
         block_multiply(row_ptr, col, values, p, q)
+        if extra[2] > 0:
+            gauss_newton_offdiagonal_multiply(extra, p, q, 1.0)
         if constrained:
             apply_filter(q, kind, normal)
         pq = _dot(p, q)
@@ -305,7 +319,7 @@ def filtered_pcg_arrays(row_ptr, col, values, b, x, kind, normal, constrained, t
         res = np.sqrt(_dot(r, r)) / b_norm
         it += 1
     if it == max_iter:
-        residual(row_ptr, col, values, b, x, r)
+        _residual_with(row_ptr, col, values, extra, b, x, r)
         if constrained:
             apply_filter(r, kind, normal)
         res = np.sqrt(_dot(r, r)) / b_norm

@@ -124,23 +124,58 @@ def _vector3(*, nonzero=False):
     return check
 
 
-def _pins(value, key):
-    """Pin entries: set names (checked here) and vertex indices (checked against the mesh later)."""
+def _pin_vertices(value, key):
+    """A pin-set name or a vertex index (indices are checked against the mesh later)."""
     from clothtool.sim.pins import PIN_SETS
 
+    if isinstance(value, bool) or not isinstance(value, (int, str)):
+        raise _type_error(key, "a pin-set name or a vertex index", value)
+    if isinstance(value, str) and value not in PIN_SETS:
+        raise InputError(f"{key}: unknown pin set {value!r}{_suggest(value, PIN_SETS)}"
+                         f" (known: {', '.join(PIN_SETS)})")
+    if isinstance(value, int) and value < 0:
+        raise InputError(f"{key}: vertex index must be ≥ 0, got {value}")
+    return value
+
+
+def _pins(value, key):
+    """Pin entries: set names, vertex indices, and moving groups ``{vertices: …, rotate: {…}}``
+    or ``{vertices: …, translate: {…}}`` (:class:`PinGroup`)."""
     if not isinstance(value, list):
-        raise _type_error(key, "a list of pin-set names and vertex indices", value)
+        raise _type_error(key, "a list of pin-set names, vertex indices and pin groups", value)
     out = []
     for i, item in enumerate(value):
-        if isinstance(item, bool) or not isinstance(item, (int, str)):
-            raise _type_error(f"{key}[{i}]", "a pin-set name or a vertex index", item)
-        if isinstance(item, str) and item not in PIN_SETS:
-            raise InputError(f"{key}[{i}]: unknown pin set {item!r}{_suggest(item, PIN_SETS)}"
-                             f" (known: {', '.join(PIN_SETS)})")
-        if isinstance(item, int) and item < 0:
-            raise InputError(f"{key}[{i}]: vertex index must be ≥ 0, got {item}")
-        out.append(item)
+        here = f"{key}[{i}]"
+        if isinstance(item, dict):
+            out.append(_pin_group(item, here))
+        else:
+            out.append(_pin_vertices(item, here))
     return tuple(out)
+
+
+def _pin_group(raw, key):
+    _check_keys(raw, {f.name for f in fields(PinGroup)}, key)
+    if "vertices" not in raw:
+        raise InputError(f"{key}: a pin group needs 'vertices' (a pin-set name or a list of "
+                         "names and vertex indices)")
+    vertices = raw["vertices"]
+    if isinstance(vertices, list):
+        if not vertices:
+            raise InputError(f"{key}.vertices must not be empty")
+        vertices = tuple(_pin_vertices(v, f"{key}.vertices[{j}]") for j, v in enumerate(vertices))
+    else:
+        vertices = (_pin_vertices(vertices, f"{key}.vertices"),)
+    motions = [m for m in ("rotate", "translate") if raw.get(m) is not None]
+    if len(motions) > 1:
+        raise InputError(f"{key}: give at most one of rotate and translate")
+    kwargs = {"vertices": vertices}
+    for name in motions:
+        body = raw[name]
+        if not isinstance(body, dict):
+            raise _type_error(f"{key}.{name}", "a mapping", body)
+        cls = Rotate if name == "rotate" else Translate
+        kwargs[name] = _build_section(cls, body, f"{key}.{name}", None)
+    return PinGroup(**kwargs)
 
 
 def _field(default, check, **kw):
@@ -200,17 +235,78 @@ class Plane:
     friction: float = _field(0.0, _number(minimum=0))
 
 
-COLLIDER_KINDS = {"sphere": Sphere, "plane": Plane}
+@dataclass(frozen=True)
+class MeshCollider:
+    """A triangle mesh: one ``ply`` or ``obj`` file (static), or a folder of ``frames`` (PLY or
+    OBJ, one topology) shown at ``fps``, positions linear in time between frames, the last
+    frame held after the end."""
+
+    ply: Path | None = _field(None, _path)
+    obj: Path | None = _field(None, _path)
+    frames: Path | None = _field(None, _path)
+    fps: float = _field(30.0, _number(minimum=0, exclusive=True))
+    friction: float = _field(0.0, _number(minimum=0))
+
+    @property
+    def source(self):
+        """(key, path) of the one mesh source given."""
+        return next((k, getattr(self, k)) for k in ("ply", "obj", "frames") if getattr(self, k))
+
+
+COLLIDER_KINDS = {"sphere": Sphere, "plane": Plane, "mesh": MeshCollider}
+
+
+@dataclass(frozen=True)
+class SelfCollision:
+    """Cloth–cloth contact: surfaces kept ``thickness`` (m) apart, Coulomb ``friction``."""
+
+    thickness: float = _field(0.002, _number(minimum=0, exclusive=True))
+    friction: float = _field(0.0, _number(minimum=0))
+
+
+@dataclass(frozen=True)
+class Rotate:
+    """Turn about the axis through ``center`` at ``speed`` rad/s (right-hand rule) until
+    ``until`` s (None: the whole run)."""
+
+    center: tuple = _field((0.0, 0.0, 0.0), _vector3())
+    axis: tuple = _field((1.0, 0.0, 0.0), _vector3(nonzero=True))
+    speed: float = _field(0.0, _number())
+    until: float | None = _field(None, _number(minimum=0))
+
+
+@dataclass(frozen=True)
+class Translate:
+    """Move at ``velocity`` m/s until ``until`` s (None: the whole run)."""
+
+    velocity: tuple = _field((0.0, 0.0, 0.0), _vector3())
+    until: float | None = _field(None, _number(minimum=0))
+
+
+@dataclass(frozen=True)
+class PinGroup:
+    """Pinned vertices (set names and indices) on a rigid motion of their initial positions."""
+
+    vertices: tuple = ()
+    rotate: Rotate | None = None
+    translate: Translate | None = None
+
+    @property
+    def motion(self):
+        return self.rotate or self.translate
 
 
 @dataclass(frozen=True)
 class Scene:
-    """``collision_margin`` (m): vertices are kept at least this far outside every collider."""
+    """``collision_margin`` (m): vertices are kept at least this far outside every collider
+    (and the surfaces of cloth and mesh colliders this far apart); ``self_collision``:
+    cloth–cloth contact, None = off."""
 
     gravity: tuple = _field((0.0, -9.81, 0.0), _vector3())
     pins: tuple = _field((), _pins)
     colliders: tuple = ()
     collision_margin: float = _field(1.0e-3, _number(minimum=0))
+    self_collision: SelfCollision | None = None
 
 
 @dataclass(frozen=True)
@@ -383,10 +479,25 @@ def _build_config(raw, base):
             raise _type_error(name, "a mapping", value)
         sections[name] = _build_section(cls, value, name, base)
     config = Config(**sections)
+    _check_contact_scene(config.scene)
     given = {f"{name}.{key}" for name, section in raw.items() if isinstance(section, dict)
              for key in section}
     methods.check_supported(config, given)
     return config
+
+
+def _check_contact_scene(scene):
+    """Spheres and planes (vertex constraints, projected after the step) cannot share a scene
+    with mesh colliders or self-collision (barrier contact, no projection)."""
+    meshes = any(isinstance(c, MeshCollider) for c in scene.colliders)
+    if not (meshes or scene.self_collision is not None):
+        return
+    for i, c in enumerate(scene.colliders):
+        if not isinstance(c, MeshCollider):
+            kind = "sphere" if isinstance(c, Sphere) else "plane"
+            with_what = "mesh colliders" if meshes else "scene.self_collision"
+            raise InputError(f"scene.colliders[{i}].{kind}: spheres and planes cannot be combined "
+                             f"with {with_what}; give this collider as a mesh")
 
 
 def _build_section(cls, raw, prefix, base):
@@ -403,6 +514,12 @@ def _build_section(cls, raw, prefix, base):
             kwargs["grid"] = _build_section(GridSpec, value, key, base)
         elif cls is Scene and f.name == "colliders":
             kwargs["colliders"] = _build_colliders(value, key, base)
+        elif cls is Scene and f.name == "self_collision":
+            if value is None:
+                continue
+            if not isinstance(value, dict):
+                raise _type_error(key, "a mapping (thickness, friction)", value)
+            kwargs["self_collision"] = _build_section(SelfCollision, value, key, base)
         elif value is None and f.default is None:
             continue
         else:
@@ -415,6 +532,14 @@ def _build_section(cls, raw, prefix, base):
             section = MeshSpec(ply=base / section.ply, uv_scale=section.uv_scale)
     if cls is Output:
         section = Output(dir=base / section.dir, every=section.every)
+    if cls is MeshCollider:
+        given = [k for k in ("ply", "obj", "frames") if getattr(section, k) is not None]
+        if len(given) != 1:
+            raise InputError(f"{prefix} needs exactly one of ply, obj and frames")
+        if "fps" in raw and given[0] != "frames":
+            raise InputError(f"{prefix}.fps applies to frames only")
+        section = MeshCollider(**{**{f.name: getattr(section, f.name) for f in fields(section)},
+                                  given[0]: base / getattr(section, given[0])})
     return section
 
 
@@ -422,12 +547,13 @@ def _build_colliders(value, key, base):
     if value is None:
         return ()
     if not isinstance(value, list):
-        raise _type_error(key, "a list of colliders (- sphere: {...} or - plane: {...})", value)
+        raise _type_error(key, "a list of colliders (- sphere: {...}, - plane: {...} or "
+                          "- mesh: {...})", value)
     out = []
     for i, item in enumerate(value):
         here = f"{key}[{i}]"
         if not isinstance(item, dict) or len(item) != 1:
-            raise _type_error(here, "one of sphere: {...}, plane: {...}", item)
+            raise _type_error(here, "one of sphere: {...}, plane: {...}, mesh: {...}", item)
         (kind, body), = item.items()
         if kind not in COLLIDER_KINDS:
             raise InputError(f"{here}: unknown collider {kind!r}{_suggest(str(kind), COLLIDER_KINDS)}")

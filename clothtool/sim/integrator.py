@@ -31,14 +31,18 @@ class StepReport:
     sweeps: int = 0  # constraint sweeps (pbd, xpbd) or local–global iterations (projective)
     substeps: int = 0  # internal steps (explicit)
     residual: float = 0.0  # largest final relative PCG residual of the step's solves
+    contacts: int = 0  # active contact pairs after the (last) step (barrier contact)
+    min_separation: float = float("inf")  # smallest contact-pair distance after it, m
 
     def add(self, other):
-        """Accumulate another report (counts add, the residual is the largest)."""
+        """Accumulate another report (counts add, the residual is the largest, the contact
+        figures are the later report's)."""
         self.newton_iterations += other.newton_iterations
         self.cg_iterations += other.cg_iterations
         self.sweeps += other.sweeps
         self.substeps += other.substeps
         self.residual = max(self.residual, other.residual)
+        self.contacts, self.min_separation = other.contacts, other.min_separation
         return self
 
 

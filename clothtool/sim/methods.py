@@ -32,8 +32,10 @@ from clothtool.errors import InputError
 # optional config features a method may support (pins and colliders work with every method:
 # colliders at least project vertices out after each step)
 FRICTION = "friction"  # Coulomb friction on colliders (scene.colliders[i].*.friction > 0)
+CONTACT = "contact"  # mesh colliders and self-collision: barrier contact, intersection-free
+MOVING_PINS = "moving pins"  # scene.pins entries with rotate or translate
 BDF2 = "bdf2"  # solver.integrator: bdf2 (the default; refused only when a config sets it)
-FEATURES = (FRICTION, BDF2)
+FEATURES = (FRICTION, CONTACT, MOVING_PINS, BDF2)
 
 
 @dataclass(frozen=True)
@@ -49,7 +51,8 @@ class Method:
 
 
 METHODS = {m.name: m for m in (
-    Method("implicit", "clothtool.sim.solvers.implicit:ImplicitEuler", frozenset({FRICTION, BDF2}),
+    Method("implicit", "clothtool.sim.solvers.implicit:ImplicitEuler",
+           frozenset({FRICTION, CONTACT, MOVING_PINS, BDF2}),
            "finite-element cloth, BDF2 or backward Euler, Newton + filtered PCG"),
     Method("mass-spring", "clothtool.sim.solvers.mass_spring:MassSpringImplicit",
            frozenset({BDF2}), "spring network, BDF2 or backward Euler, Newton + PCG"),
@@ -72,9 +75,17 @@ def requested_features(config, given=()):
     if config.solver.integrator == "bdf2" and "solver.integrator" in given:
         out.append((BDF2, "solver.integrator: bdf2"))
     for i, collider in enumerate(config.scene.colliders):
-        if collider.friction > 0:
-            kind = type(collider).__name__.lower()
+        kind = {"Sphere": "sphere", "Plane": "plane"}.get(type(collider).__name__, "mesh")
+        if kind == "mesh":
+            out.append((CONTACT, f"scene.colliders[{i}].mesh"))
+        elif collider.friction > 0:
             out.append((FRICTION, f"scene.colliders[{i}].{kind}.friction"))
+    if config.scene.self_collision is not None:
+        out.append((CONTACT, "scene.self_collision"))
+    for i, pin in enumerate(config.scene.pins):
+        motion = getattr(pin, "motion", None)
+        if motion is not None:
+            out.append((MOVING_PINS, f"scene.pins[{i}].{'rotate' if pin.rotate else 'translate'}"))
     return out
 
 

@@ -8,18 +8,19 @@ then kept). A term whose stiffness is zero is left out entirely (no hinges,
 no pattern blocks, no kernels), as are pins and colliders when there are none.
 """
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from functools import cached_property
 
 import numpy as np
 
 from clothtool.errors import InputError
 from clothtool.sim.blocksparse import BlockPattern, scatter_blocks
+from clothtool.sim.contact import build_contact_scene
 from clothtool.sim.filter import FREE, PINNED
 from clothtool.sim.config import Plane, Sphere
 from clothtool.geometry import hinges
 from clothtool.sim.mesh import build_rest_mesh, rest_edge_matrices
-from clothtool.sim.pins import resolve_pins
+from clothtool.sim.motion import resolve_pin_entries
 from clothtool.sim.state import State
 
 DEGENERATE = 1e-12  # rest triangle area relative to its squared longest edge
@@ -51,6 +52,21 @@ class Model:
     tri_slots: np.ndarray  # (M, 9)
     hinge_slots: np.ndarray  # (H, 16)
     constant_hessian: np.ndarray | None  # block values of the quadratic bending Hessian
+    pin_motions: list = field(default_factory=list)  # PinMotion per moving pin group
+    contact: object = None  # ContactScene: mesh colliders and self-collision, or None
+
+    @cached_property
+    def moving_pinned(self):
+        """(P,) vertices of the moving pin groups."""
+        if not self.pin_motions:
+            return np.zeros(0, dtype=np.int64)
+        return np.concatenate([m.vertices for m in self.pin_motions])
+
+    def pin_goal(self, t):
+        """(P, 3) positions at time t of :attr:`moving_pinned` (rigid motions of the initial
+        positions)."""
+        x0 = self.mesh.positions
+        return np.concatenate([m.positions(x0[m.vertices], t) for m in self.pin_motions])
 
     @property
     def faces(self):
@@ -116,7 +132,7 @@ def build_model(config):
         raise InputError(f"mesh: vertex {np.flatnonzero(mass == 0)[0]} belongs to no triangle")
 
     bend_model, hinge, rest_angle, coef, weights = _bending(mesh, area, mat)
-    pinned = resolve_pins(config.scene.pins, n, mesh.grid_shape)
+    pinned, pin_motions = resolve_pin_entries(config.scene.pins, n, mesh.grid_shape)
     free = np.ones(n, dtype=np.bool_)
     free[pinned] = False
     kind = np.full(n, FREE, dtype=np.int8)
@@ -149,6 +165,7 @@ def build_model(config):
         friction=np.array([c.friction for c in spheres + planes], dtype=np.float64),
         collision_margin=config.scene.collision_margin,
         pattern=pattern, tri_slots=tri_slots, hinge_slots=hinge_slots, constant_hessian=constant,
+        pin_motions=pin_motions, contact=build_contact_scene(config, mesh),
     )
 
 

@@ -39,18 +39,31 @@ the PCG guess h v_n: that is exactly Baraff–Witkin's linearised step
 
 Vertices held by pins or (for methods with ``contacts``) collider contacts
 (:mod:`clothtool.sim.collide`) are constrained in the solve through the filter.
+
+With mesh colliders or self-collision (:mod:`clothtool.sim.contact`) the potential gains
+the contact barrier, Newton starts from x_n (collision-free) with the PCG guess x̃ − x_n,
+and every Newton step is cut to its collision-free fraction before the line search, which
+starts there. Moving pins and animated colliders still short of their end-of-step
+positions move with the Newton steps: the pins as prescribed components of the solve, the
+colliders through the linearised barrier force −H_cX ΔX on the right-hand side; such a
+step is taken as far as it is collision-free (E need not fall: the prescribed motion adds
+energy), and a step that does not bring them there in ``newton_iterations`` is a
+numerical failure.
 """
 
 import numpy as np
 
+from clothtool.contact.barrier import NO_OPERATOR
 from clothtool.errors import NumericalError
 from clothtool.sim.blocksparse import BlockMatrix, ConstraintFilter, filtered_pcg
 from clothtool.sim.collide import apply_friction, contact_constraints, resolve_collisions
+from clothtool.sim.contact import BarrierContact
 from clothtool.sim.filter import apply_filter
 from clothtool.sim.integrator import Integrator, StepReport, gravity_potential, mass_weighted
 from clothtool.sim.multigrid import make_preconditioner
 
 MAX_HALVINGS = 30  # down to 2⁻³⁰: a descent direction always decreases E for a small enough step
+REACHED = 1e-9  # m: moving pins and animated colliders this close to their goal have reached it
 # Eisenstat–Walker forcing terms, choice 2, at most EW_MAX: a looser PCG (0.5) stops after
 # a few iterations with a Newton step far too short, which the stopping test then takes for
 # convergence (measured with bench_accuracy's scenes: stiff cloth locks, the plate's error
@@ -103,6 +116,11 @@ class NewtonIntegrator(Integrator):
         self._free_mass = float(np.sum(model.mass[model.free]))
         self.preconditioner = make_preconditioner(
             solver.preconditioner if self.multigrid else "jacobi", pattern, model.faces)
+        self.contact = None  # mesh colliders and self-collision (clothtool.sim.contact)
+        if model.contact is not None:
+            self.contact = BarrierContact(model.contact, model.mass, model.free, h,
+                                          max(model.stretch[0], model.stretch[1], model.k_shear))
+            self.contact.check_initial(model.mesh.positions)
 
     def potential(self, x, base, inertia_target, h_eff):
         """E(x) = 1/(2ĥ²)‖x − x̃‖²_M − Σ m g·x + W(x) + ½(x − base)ᵀD(x − base), with the
@@ -136,14 +154,17 @@ class NewtonIntegrator(Integrator):
                     + w + at_x + s * cross + 0.5 * s * s * curve)
         return energy
 
-    def _line_search(self, x, dx, base, target, elastic, h_eff):
-        """The first step s = 1, 1/2, 1/4, … (at most ``MAX_HALVINGS`` halvings) with
-        E(x + s dx) ≤ E(x), given W(x) = elastic; 0 when there is none."""
+    def _line_search(self, x, dx, base, target, elastic, h_eff, start=1.0, contact=None):
+        """The first step s = start, start/2, … (at most ``MAX_HALVINGS`` halvings) with
+        E(x + s dx) ≤ E(x), given W(x) = elastic (E with the contact barrier's energy at s,
+        ``contact.energy(s)``, and elastic including it, when contact is given); 0 when
+        there is none."""
         energy = self.along(x, dx, base, target, h_eff)
         e0 = energy(0.0, elastic)
-        s = 1.0
+        s = start
         for _ in range(MAX_HALVINGS):
-            if energy(s, self.elastic.energy(x + s * dx)) <= e0:
+            w = self.elastic.energy(x + s * dx) + (contact.energy(s) if contact is not None else 0.0)
+            if energy(s, w) <= e0:
                 return s
             s *= 0.5
         return 0.0
@@ -165,15 +186,23 @@ class NewtonIntegrator(Integrator):
         matrix, values = self.matrix, self.matrix.values
         x_n, v_n = state.x, state.v
         h_eff, base, target = self.discretisation(state)
+        contact = self.contact
         if solver.newton_iterations == 1:  # exactly Baraff–Witkin's linearised step
             x = x_n.copy()
             dx = h * v_n  # PCG guess: the previous motion
+        elif contact is not None:  # from x_n, which is collision-free, toward x̃
+            x = x_n.copy()
+            dx = target - x_n
         else:  # from the inertia target (the motion without forces), the first PCG from 0
             x = target.copy()
             dx = np.zeros_like(x)
         if model.has_pins:
             x[model.pinned] = x_n[model.pinned]
             dx[model.pinned] = 0.0
+        moving = model.moving_pinned
+        goal = model.pin_goal(state.time + h) if len(moving) else None  # end-of-step positions
+        if contact is not None:
+            contact.begin(x_n, v_n, state.time, moving, goal)
         kind = model.kind.copy()
         constrained = model.has_pins
         contacts = self.contacts and model.has_colliders
@@ -202,25 +231,42 @@ class NewtonIntegrator(Integrator):
             grad = self._mass3 * (x - target) / (h_eff * h_eff) - self._mass3 * model.gravity + self._grad
             if damped:
                 grad += self._damped
+            if contact is not None:
+                elastic += contact.assemble(x, grad, matrix)
             g_norm = _filtered_norm(grad, kind, self._normal, constrained)
             if it > 0:
                 dx = (1.0 - step) * dx  # PCG guess: what the line search left of the last step
                 forcing = eisenstat_walker(g_norm, g_prev, forcing, solver.tolerance)
             g_prev = g_norm
-            cg_its, res = filtered_pcg(matrix, -grad, dx, constraints, forcing,
-                                       solver.max_iterations, self.preconditioner)
+            # moving pins and animated colliders short of their end-of-step positions move
+            # with this step (see the module docstring)
+            prescribed = self._behind(x, moving, goal) > REACHED
+            rhs = -grad
+            if prescribed and goal is not None:
+                dx[moving] = goal - x[moving]
+            if prescribed and contact is not None:
+                contact.add_collider_coupling(rhs)
+            cg_its, res = filtered_pcg(matrix, rhs, dx, constraints, forcing,
+                                       solver.max_iterations, self.preconditioner,
+                                       contact.operator if contact is not None else NO_OPERATOR)
             report.newton_iterations += 1
             report.cg_iterations += cg_its
             report.residual = max(report.residual, res)
             if not np.all(np.isfinite(dx)):
                 raise NumericalError("the linear solve produced non-finite values")
             step = 1.0
-            if solver.line_search:
-                step = self._line_search(x, dx, base, target, elastic, h_eff)
+            if contact is not None:  # from the collision-free fraction of the step
+                step = contact.max_step(dx)
+            if (solver.line_search or contact is not None) and not prescribed:
+                step = self._line_search(x, dx, base, target, elastic, h_eff, step, contact)
             elif damped:
                 self._damping.multiply(dx, self._tmp)
+            if contact is not None:
+                contact.advance(step)
             if step > 0.0:
                 x += step * dx
+                if prescribed and step == 1.0 and goal is not None:
+                    x[moving] = goal  # exactly
                 if damped:  # D(x − base) moves by step · D dx (left in self._tmp)
                     self._damped += step * self._tmp
             moved = float(np.max(np.abs(step * dx))) / h
@@ -229,17 +275,35 @@ class NewtonIntegrator(Integrator):
             # was poor there, not because x is near the minimum
             if step == 0.0 or (step == 1.0 and moved <= tol
                                and -float(np.sum(grad * dx)) <= tol * tol * self._free_mass):
-                break
+                if self._behind(x, moving, goal) <= REACHED:
+                    break
+        behind = self._behind(x, moving, goal)
+        if behind > REACHED:
+            raise NumericalError(
+                f"a moving pin or collider could not reach its position without crossing the "
+                f"cloth (still {behind:.3g} m away after {report.newton_iterations} Newton steps)")
         state.x_prev, state.v_prev = x_n, v_n
         state.v = (x - base) / h_eff
         state.x = x
         state.time += h
+        if contact is not None:
+            contact.finish(state, h_eff)
+            report.contacts, report.min_separation = contact.contacts, contact.min_separation
         if contacts:
             self._contact_response(state, -grad, dx, h_eff)
         elif model.has_colliders:
             resolve_collisions(state.x, state.v, model.free, model.spheres, model.planes,
                                model.collision_margin)
         return report
+
+    def _behind(self, x, moving, goal):
+        """How far (m) moving pins and animated colliders are from their end-of-step positions."""
+        worst = 0.0
+        if goal is not None:
+            worst = float(np.max(np.abs(goal - x[moving])))
+        if self.contact is not None:
+            worst = max(worst, self.contact.colliders_behind())
+        return worst
 
     def _contact_response(self, state, b, dx, h_eff):
         """Friction from the constraint forces, release of pulling contacts, projection."""

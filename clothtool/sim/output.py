@@ -21,6 +21,10 @@ from clothtool.io.ply import write_ply
 # iterations (projective), internal steps (explicit), each summed over the frame's steps
 STATS_COLUMNS = ("frame", "time", "kinetic", "elastic", "gravity", "newton_iterations",
                  "cg_iterations", "residual", "max_stretch", "wall_s", "sweeps", "substeps")
+# with mesh colliders or self-collision: active contact pairs after the frame's last step and
+# the smallest distance between contact pairs (cloth–cloth or cloth–collider, m; inf when
+# no pair is within reach of the barrier's candidates)
+CONTACT_COLUMNS = ("contacts", "min_separation")
 FRAME_NAME = re.compile(r"frame_\d{5,}\.ply")
 
 
@@ -35,8 +39,9 @@ class FrameWriter:
     first, so the folder never mixes two runs; other files are left alone.
     """
 
-    def __init__(self, out_dir, faces, uv):
+    def __init__(self, out_dir, faces, uv, columns=STATS_COLUMNS):
         self.out_dir = Path(out_dir)
+        self.columns = tuple(columns)
         self.faces = faces
         self.properties = {"s": uv[:, 0].copy(), "t": uv[:, 1].copy()} if uv is not None else None
         try:
@@ -53,7 +58,7 @@ class FrameWriter:
         except OSError as exc:
             raise InputError(f"{self.out_dir}: output folder is not writable: {exc.strerror}") from None
         self._stats = csv.writer(self._stats_file)
-        self._stats.writerow(STATS_COLUMNS)
+        self._stats.writerow(self.columns)
         self._stats_file.flush()
 
     def write_frame(self, frame, positions):
@@ -61,7 +66,7 @@ class FrameWriter:
                   vertex_properties=self.properties)
 
     def write_stats(self, row):
-        self._stats.writerow([_format(row[name]) for name in STATS_COLUMNS])
+        self._stats.writerow([_format(row[name]) for name in self.columns])
         self._stats_file.flush()
 
     def close(self):

@@ -25,24 +25,27 @@ def grid_pin_set(name, nx, ny):
     return np.asarray(sets[name], dtype=np.int64)
 
 
+def pin_entry_vertices(entry, n_vertices, grid_shape, key):
+    """Vertex indices of one pin entry (a set name or an index); ``key`` names it in errors."""
+    if isinstance(entry, str):
+        if grid_shape is None:
+            raise InputError(f"{key}: pin set {entry!r} needs a grid mesh; "
+                             "give vertex indices for a PLY mesh")
+        return grid_pin_set(entry, *grid_shape)
+    if entry >= n_vertices:
+        raise InputError(f"{key}: vertex index {entry} out of range "
+                         f"(the mesh has {n_vertices} vertices)")
+    return np.array([entry], dtype=np.int64)
+
+
 def resolve_pins(entries, n_vertices, grid_shape, key="scene.pins"):
     """Sorted unique pinned vertex indices from names and indices.
 
     ``grid_shape`` is (nx, ny) for a grid mesh, None for a PLY mesh (where only
     vertex indices are allowed).
     """
-    picked = []
-    for k, entry in enumerate(entries):
-        if isinstance(entry, str):
-            if grid_shape is None:
-                raise InputError(f"{key}[{k}]: pin set {entry!r} needs a grid mesh; "
-                                 "give vertex indices for a PLY mesh")
-            picked.append(grid_pin_set(entry, *grid_shape))
-        else:
-            if entry >= n_vertices:
-                raise InputError(f"{key}[{k}]: vertex index {entry} out of range "
-                                 f"(the mesh has {n_vertices} vertices)")
-            picked.append(np.array([entry], dtype=np.int64))
+    picked = [pin_entry_vertices(entry, n_vertices, grid_shape, f"{key}[{k}]")
+              for k, entry in enumerate(entries)]
     if not picked:
         return np.zeros(0, dtype=np.int64)
     return np.unique(np.concatenate(picked))
