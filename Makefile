@@ -1,4 +1,5 @@
 # make demo   set up .venv, analyze the bundled sample_data/, simulate and analyze a hanging sheet
+#             and a sheet draped over a body (contact, no intersections)
 # make test   set up .venv and run the test suite
 # make bench  set up .venv (with benchmark extras) and write bench-results/
 PYTHON ?= python3
@@ -21,7 +22,10 @@ demo: $(VENV)/.installed
 	$(CLOTHTOOL) simulate sample_data/hanging_sheet.yaml -o demo-out/hanging_sheet
 	$(CLOTHTOOL) analyze demo-out/hanging_sheet -o demo-out/hanging_sheet.h5 --reference uv
 	$(CLOTHTOOL) plot demo-out/hanging_sheet.h5 -o demo-out/hanging_sheet.png
-	@echo "open demo-out/*.xdmf in ParaView; figure: demo-out/hanging_sheet.png"
+	$(CLOTHTOOL) simulate sample_data/drape.yaml -o demo-out/drape
+	$(CLOTHTOOL) analyze demo-out/drape -o demo-out/drape.h5 --reference uv -q
+	$(CLOTHTOOL) plot demo-out/drape.h5 -o demo-out/drape.png
+	@echo "open demo-out/*.xdmf in ParaView; figures: demo-out/hanging_sheet.png, demo-out/drape.png"
 
 test: $(VENV)/.installed
 	$(PY) -m pytest -q
