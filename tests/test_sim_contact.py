@@ -18,7 +18,7 @@ from clothtool.cli import main
 from clothtool.contact.broadphase import mesh_edges
 from clothtool.contact.intersect import has_intersections
 from clothtool.contact.shapes import box, capsule, plate
-from clothtool.errors import InputError, NumericalError
+from clothtool.errors import InputError
 from clothtool.io.ply import read_ply, write_ply
 from clothtool.sim.api import simulate
 from clothtool.sim.config import GridSpec, load_config

@@ -10,7 +10,7 @@ import scipy.sparse.linalg as spla
 from clothtool.errors import NumericalError
 from clothtool.io.ply import read_ply, write_ply
 from clothtool.sim.api import simulate
-from clothtool.sim.blocksparse import (BlockJacobi, BlockMatrix, BlockPattern, ConstraintFilter,
+from clothtool.sim.blocksparse import (BlockJacobi, BlockMatrix, ConstraintFilter,
                                       block_multiply, filtered_pcg)
 from clothtool.sim.config import load_config
 from clothtool.sim.methods import make_integrator

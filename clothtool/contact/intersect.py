@@ -25,6 +25,16 @@ CCW_ERRBOUND_A = (3.0 + 16.0 * 2.0**-53) * 2.0**-53
 NO, YES, UNSURE = 0, 1, 2
 
 
+@njit(cache=True, inline="always")
+def _certain_sign(det, bound):
+    """+1 or −1 when |det| exceeds its rounding-error bound, else 0 (undecided)."""
+    if det > bound:
+        return 1
+    if -det > bound:
+        return -1
+    return 0
+
+
 @njit(cache=True)
 def orient3d(a, b, c, d):
     """Sign of det[a − d; b − d; c − d] (+1, −1), or 0 when rounding could have changed it."""
@@ -37,12 +47,7 @@ def orient3d(a, b, c, d):
     det = adz * (bdxcdy - cdxbdy) + bdz * (cdxady - adxcdy) + cdz * (adxbdy - bdxady)
     permanent = ((abs(bdxcdy) + abs(cdxbdy)) * abs(adz) + (abs(cdxady) + abs(adxcdy)) * abs(bdz)
                  + (abs(adxbdy) + abs(bdxady)) * abs(cdz))
-    bound = ERRBOUND_A * permanent
-    if det > bound:
-        return 1
-    if -det > bound:
-        return -1
-    return 0
+    return _certain_sign(det, ERRBOUND_A * permanent)
 
 
 @njit(cache=True)
@@ -52,12 +57,7 @@ def orient2d(a, b, c, i, j):
     left = (a[i] - c[i]) * (b[j] - c[j])
     right = (a[j] - c[j]) * (b[i] - c[i])
     det = left - right
-    bound = CCW_ERRBOUND_A * (abs(left) + abs(right))
-    if det > bound:
-        return 1
-    if -det > bound:
-        return -1
-    return 0
+    return _certain_sign(det, CCW_ERRBOUND_A * (abs(left) + abs(right)))
 
 
 @njit(cache=True)

@@ -31,7 +31,7 @@ from numba import njit
 
 from clothtool.contact.barrier import NO_OPERATOR, gauss_newton_offdiagonal_multiply
 from clothtool.sim.filter import PINNED, apply_filter
-from clothtool.sim.multigrid import NO_MULTIGRID, setup_levels, vcycle
+from clothtool.sim.multigrid import NO_MULTIGRID, vcycle
 from clothtool.vec3 import inverse3
 
 

@@ -15,7 +15,6 @@ The methods and the config features each supports are listed in one registry,
 
 from dataclasses import dataclass
 
-import numpy as np
 from numba import njit
 
 from clothtool.sim.collide import resolve_collisions
