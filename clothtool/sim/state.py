@@ -16,9 +16,8 @@ class State:
     time: float = 0.0
     # contact memory: vertices whose contact pulled at the last step are released at the next
     released: np.ndarray = field(default=None)  # (N,) bool
-    # vbd: (v_n − v_{n−1})/h of the last step, for its initial guess; None = none yet
-    acceleration: np.ndarray = field(default=None)  # (N, 3)
-    # positions and velocities before the last step (BDF2's second history point); None at start
+    # positions and velocities before the last step (BDF2's second history point, VBD's last
+    # acceleration (v − v_prev)/h); None at start
     x_prev: np.ndarray | None = None
     v_prev: np.ndarray | None = None
 

@@ -386,9 +386,9 @@ class VertexBlockDescent(Integrator):
         self.prepare(state.x)
         done, residual = self.solve(x, state.x, y, solver.iterations, solver.chebyshev_rho,
                                     solver.vbd_tolerance)
-        v_n = state.v
+        x_n, v_n = state.x, state.v
         self._finish(state, x)
-        state.acceleration = (state.v - v_n) / self.h
+        state.x_prev, state.v_prev = x_n, v_n
         return StepReport(sweeps=done, residual=residual)
 
     def _initial_guess(self, state):
@@ -397,10 +397,10 @@ class VertexBlockDescent(Integrator):
         g2 = float(g @ g)
         x = state.x + h * state.v
         if g2 > 0.0:
-            if state.acceleration is None:
+            if state.v_prev is None:
                 along = np.ones(len(x))
             else:
-                a = state.acceleration  # a·g without a BLAS call
+                a = (state.v - state.v_prev) / h  # the last step's acceleration; a·g without BLAS
                 along = np.clip((a[:, 0] * g[0] + a[:, 1] * g[1] + a[:, 2] * g[2]) / g2, 0.0, 1.0)
             x += (h * h) * along[:, None] * g
         if self.model.has_pins:
