@@ -180,6 +180,11 @@ class NewtonIntegrator(Integrator):
             return h_eff, base, base + h_eff * ((4.0 * state.v - state.v_prev) / 3.0)
         return h, state.x, state.x + h * state.v
 
+    def _freeze_damping(self, k_values, beta_over_h, displacement):
+        """D = (β/ĥ) K(x_n) from the blocks of K(x_n), frozen for the step, and D(x − base)."""
+        np.multiply(k_values, beta_over_h, out=self._damping.values)
+        self._damping.multiply(displacement, self._damped)
+
     def step(self, state):
         """Advance state by h in place; returns a :class:`~clothtool.sim.integrator.StepReport`."""
         model, solver, h = self.model, self.solver, self.h
@@ -218,13 +223,15 @@ class NewtonIntegrator(Integrator):
         report = StepReport()
         forcing, g_prev, step = solver.tolerance, 0.0, 1.0
         damped = self._damping is not None
-        if damped:  # D = (β/ĥ) K(x_n), frozen for the step
+        from_x_n = solver.newton_iterations == 1 or contact is not None  # x starts equal to x_n
+        if damped and not from_x_n:
             self.elastic.assemble(x_n, self._grad, values)
-            np.multiply(values, model.damping / h_eff, out=self._damping.values)
-            self._damping.multiply(x - base, self._damped)  # D(x − base), kept up to date
+            self._freeze_damping(values, model.damping / h_eff, x - base)
         for it in range(solver.newton_iterations):
             elastic = self.elastic.assemble(x, self._grad, values)
             if damped:
+                if it == 0 and from_x_n:
+                    self._freeze_damping(values, model.damping / h_eff, x - base)
                 values += self._damping.values
             matrix.add_diagonal(inertia)
             # ∇E = M(x − x̃)/ĥ² − M g + ∇W + D(x − base)
