@@ -38,7 +38,7 @@ from clothtool.contact.intersect import has_intersections
 from clothtool.io.ply import read_ply
 from clothtool.sim.api import simulate
 from clothtool.sim.config import load_config
-from clothtool.sim.meshcollider import load_colliders
+from clothtool.sim.colliders import load_colliders
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENES = ("twist", "drape", "stack", "tablecloth")

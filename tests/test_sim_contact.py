@@ -24,7 +24,7 @@ from clothtool.sim.api import simulate
 from clothtool.sim.config import GridSpec, load_config
 from clothtool.sim.mesh import grid_mesh
 from clothtool.sim.motion import resolve_pin_entries
-from clothtool.sim.meshcollider import load_colliders
+from clothtool.sim.colliders import load_colliders
 
 SOLVER = {"newton_iterations": 8, "newton_tolerance": 2e-2, "tolerance": 1e-2}
 

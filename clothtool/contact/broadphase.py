@@ -15,6 +15,7 @@ collider (``obstacle``) elements, and cloth–cloth pairs only with ``self_conta
 import numpy as np
 from numba import njit
 
+from clothtool.contact.barrier import EDGE_EDGE, POINT_PLANE, POINT_TRIANGLE
 from clothtool.contact.distance import edge_edge_weights, point_triangle_weights
 
 MAX_CELLS_PER_BOX = 8.0  # cells of the grid per binned box at most (grows the cell size)
@@ -191,11 +192,12 @@ def box_pairs(alo, ahi, elem_a, blo, bhi, elem_b, r, obstacle, self_contact, sam
 
 
 @njit(cache=True)
-def motion_bound(dx, rho, st, edge_edge):
+def motion_bound(dx, rho, st):
     """How much the pair's distance at x can change for vertices anywhere within ρ of their
     motion x + t dx, t ∈ [0, 1]: the relative displacement bound of additive CCD (the
     displacements less their mean, the largest on each side added; a common translation
     does not count), plus the largest ρ on each side."""
+    edge_edge = st[4] == EDGE_EDGE
     m0 = 0.25 * (dx[st[0], 0] + dx[st[1], 0] + dx[st[2], 0] + dx[st[3], 0])
     m1 = 0.25 * (dx[st[0], 1] + dx[st[1], 1] + dx[st[2], 1] + dx[st[3], 1])
     m2 = 0.25 * (dx[st[0], 2] + dx[st[1], 2] + dx[st[2], 2] + dx[st[3], 2])
@@ -210,39 +212,73 @@ def motion_bound(dx, rho, st, edge_edge):
 
 
 @njit(cache=True)
-def contact_stencils(x, dx, rho, faces, edges, obstacle, self_contact, r):
-    """Candidate pairs over the motion x → x + dx as (K, 4) vertex stencils and the count of
-    vertex–triangle ones (first; (p, a, b, c)), the rest edge–edge ((a0, a1, b0, b1)).
+def contact_stencils(x, dx, rho, points, faces, edges, planes, n_cloth, obstacle, radius,
+                     self_contact, r):
+    """Candidate pairs over the motion x → x + dx as (K, 5) stencils, the fifth column their
+    kind (``barrier.POINT_TRIANGLE``: (p, a, b, c); ``EDGE_EDGE``: (a0, a1, b0, b1);
+    ``POINT_PLANE``: (p, o, t, o) for each plane (o, t) of ``planes`` (P, 2)).
 
-    Holds every allowed pair that comes closer than r while each vertex v is within
-    rho_v (N,) of its motion x_v + t dx_v, t ∈ [0, 1]: the pairs of overlapping boxes, less
-    those whose distance at x exceeds r plus their motion bound (see ``motion_bound``).
+    Holds every allowed pair whose surfaces come closer than r while each vertex v is
+    within rho_v (N,) of its motion x_v + t dx_v, t ∈ [0, 1]: the pairs of overlapping
+    boxes (a vertex's grown by its radius), less those whose surface distance at x exceeds
+    r plus their motion bound (see ``motion_bound``); and the cloth vertices (the first
+    n_cloth) that can come within r of a plane. ``points``: the vertices that are points of
+    a surface (all but the planes' o and t); ``obstacle`` (N,) marks collider vertices,
+    ``radius`` (N,) their radii; cloth–cloth pairs only with ``self_contact``.
     """
-    vlo, vhi = vertex_boxes(x, dx, rho)
+    grown = rho + radius
+    vlo, vhi = vertex_boxes(x, dx, grown)
     flo, fhi = element_boxes(vlo, vhi, faces)
     elo, ehi = element_boxes(vlo, vhi, edges)
-    verts = np.arange(x.shape[0]).reshape(-1, 1)
-    vf = box_pairs(vlo, vhi, verts, flo, fhi, faces, r, obstacle, self_contact, False)
+    vf = box_pairs(vlo[points], vhi[points], points.reshape(-1, 1), flo, fhi, faces, r, obstacle,
+                   self_contact, False)
     ee = box_pairs(elo, ehi, edges, elo, ehi, edges, r, obstacle, self_contact, True)
-    stencils = np.empty((vf.shape[0] + ee.shape[0], 4), dtype=np.int64)
+    stencils = np.empty((vf.shape[0] + ee.shape[0] + n_cloth * planes.shape[0], 5),
+                        dtype=np.int64)
     w = np.empty(4)
     n = 0
     for k in range(vf.shape[0]):
         f = vf[k, 1]
         st = stencils[n]
-        st[0], st[1], st[2], st[3] = vf[k, 0], faces[f, 0], faces[f, 1], faces[f, 2]
-        d = np.sqrt(point_triangle_weights(x, st[0], st[1], st[2], st[3], w))
-        if d - motion_bound(dx, rho, st, False) < r:
+        st[0], st[1], st[2], st[3] = points[vf[k, 0]], faces[f, 0], faces[f, 1], faces[f, 2]
+        st[4] = POINT_TRIANGLE
+        d = np.sqrt(point_triangle_weights(x, st[0], st[1], st[2], st[3], w)) - radius[st[0]]
+        if d - motion_bound(dx, rho, st) < r:
             n += 1
-    n_pt = n
     for k in range(ee.shape[0]):
         st = stencils[n]
         st[0], st[1] = edges[ee[k, 0], 0], edges[ee[k, 0], 1]
         st[2], st[3] = edges[ee[k, 1], 0], edges[ee[k, 1], 1]
-        d = np.sqrt(edge_edge_weights(x, st[0], st[1], st[2], st[3], w))
-        if d - motion_bound(dx, rho, st, True) < r:
+        st[4] = EDGE_EDGE
+        d = np.sqrt(edge_edge_weights(x, st[0], st[1], st[2], st[3], w)) - radius[st[0]] - radius[st[2]]
+        if d - motion_bound(dx, rho, st) < r:
             n += 1
-    return stencils[:n].copy(), n_pt
+    for q in range(planes.shape[0]):
+        o, t = planes[q, 0], planes[q, 1]
+        for p in range(n_cloth):
+            st = stencils[n]
+            st[0], st[1], st[2], st[3], st[4] = p, o, t, o, POINT_PLANE
+            if _plane_reach(x, dx, rho, p, o, t) < r:
+                n += 1
+    return stencils[:n].copy()
+
+
+@njit(cache=True)
+def _plane_reach(x, dx, rho, p, o, t):
+    """A lower bound of vertex p's distance to the plane (o, t) along the motion, within
+    rho of it: the distance at x less the bound of ``ccd``'s vertex–plane rate."""
+    d = 0.0
+    rel = 0.0
+    dn = 0.0
+    lever = 0.0
+    for i in range(3):
+        n_i = x[t, i] - x[o, i]
+        d += (x[p, i] - x[o, i]) * n_i
+        rel += (dx[p, i] - dx[o, i]) ** 2
+        dn += (dx[t, i] - dx[o, i]) ** 2
+        lever += (x[p, i] - x[o, i]) ** 2
+    rel, dn, lever = np.sqrt(rel), np.sqrt(dn), np.sqrt(lever)
+    return d - (rel * (1.0 + dn) + (lever + rel) * dn) - rho[p] - rho[o]
 
 
 def mesh_edges(faces):

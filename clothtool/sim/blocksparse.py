@@ -29,9 +29,9 @@ kernels underneath take the plain arrays these unpack to.
 import numpy as np
 from numba import njit
 
-from clothtool.contact.barrier import NO_OPERATOR, gauss_newton_offdiagonal_multiply
 from clothtool.sim.filter import PINNED, apply_filter
 from clothtool.sim.multigrid import NO_MULTIGRID, vcycle
+from clothtool.sim.pairs import NO_PAIRS, pairs_offdiagonal_multiply
 from clothtool.vec3 import inverse3
 
 
@@ -239,15 +239,14 @@ def _precondition(inv, r, kind, normal, constrained, z, mg):
         apply_filter(z, kind, normal)
 
 
-def filtered_pcg(matrix, b, x, constraints, tol, max_iter, preconditioner, extra=NO_OPERATOR):
+def filtered_pcg(matrix, b, x, constraints, tol, max_iter, preconditioner, extra=NO_PAIRS):
     """Solve S(A x − b) = 0 from x, whose constrained components (I − S)x stay as given.
 
     ``matrix``: a :class:`BlockMatrix`; ``constraints``: a :class:`ConstraintFilter`
     (S); ``preconditioner``: :class:`BlockJacobi` or a
     :class:`~clothtool.sim.multigrid.Hierarchy`, set up here for this matrix and filter;
-    ``extra``: off-diagonal contact blocks applied matrix-free
-    (:func:`~clothtool.contact.barrier.solve_operator`), whose diagonal blocks are already in
-    the matrix. Stops when the true relative residual ‖S(b − Ax)‖ / ‖S b‖ ≤ ``tol`` or after
+    ``extra``: a pair operator (:mod:`clothtool.sim.pairs`) whose off-diagonal part is
+    applied matrix-free; its diagonal blocks are already in the matrix. Stops when the true relative residual ‖S(b − Ax)‖ / ‖S b‖ ≤ ``tol`` or after
     ``max_iter`` iterations. Returns (iterations, relative true residual).
     """
     preconditioner.setup(matrix, constraints)
@@ -260,8 +259,8 @@ def filtered_pcg(matrix, b, x, constraints, tol, max_iter, preconditioner, extra
 def _residual_with(row_ptr, col, values, extra, b, x, r):
     """r = b − (A + H_extra) x."""
     residual(row_ptr, col, values, b, x, r)
-    if extra[2] > 0:
-        gauss_newton_offdiagonal_multiply(extra, x, r, -1.0)
+    if extra[3] > 0:
+        pairs_offdiagonal_multiply(extra, x, r, -1.0)
 
 
 @njit(cache=True)
@@ -270,7 +269,7 @@ def filtered_pcg_arrays(row_ptr, col, values, b, x, kind, normal, constrained, t
     """:func:`filtered_pcg` on plain arrays: ``constrained`` False skips the filter; ``inv``
     the block-Jacobi inverses (:func:`block_jacobi`) and ``mg`` ``NO_MULTIGRID``, or ``mg``
     the arrays of a multigrid hierarchy after ``setup_levels``; ``extra`` the matrix-free
-    contact blocks (``NO_OPERATOR`` for none)."""
+    contact blocks (``NO_PAIRS`` for none)."""
     n = b.shape[0]
     sb = b.copy()
     if constrained:
@@ -302,8 +301,8 @@ def filtered_pcg_arrays(row_ptr, col, values, b, x, kind, normal, constrained, t
             p[:] = z
             rz = _dot(r, z)
         block_multiply(row_ptr, col, values, p, q)
-        if extra[2] > 0:
-            gauss_newton_offdiagonal_multiply(extra, p, q, 1.0)
+        if extra[3] > 0:
+            pairs_offdiagonal_multiply(extra, p, q, 1.0)
         if constrained:
             apply_filter(q, kind, normal)
         pq = _dot(p, q)

@@ -226,6 +226,7 @@ class Sphere:
     center: tuple = _field((0.0, 0.0, 0.0), _vector3())
     radius: float = _field(1.0, _number(minimum=0, exclusive=True))
     friction: float = _field(0.0, _number(minimum=0))
+    motion: "Motion | None" = None
 
 
 @dataclass(frozen=True)
@@ -233,6 +234,31 @@ class Plane:
     point: tuple = _field((0.0, 0.0, 0.0), _vector3())
     normal: tuple = _field((0.0, 1.0, 0.0), _vector3(nonzero=True))
     friction: float = _field(0.0, _number(minimum=0))
+    motion: "Motion | None" = None
+
+
+@dataclass(frozen=True)
+class Capsule:
+    """The points within ``radius`` of the segment from ``a`` to ``b``."""
+
+    a: tuple = _field((-0.5, 0.0, 0.0), _vector3())
+    b: tuple = _field((0.5, 0.0, 0.0), _vector3())
+    radius: float = _field(0.1, _number(minimum=0, exclusive=True))
+    friction: float = _field(0.0, _number(minimum=0))
+    motion: "Motion | None" = None
+
+
+@dataclass(frozen=True)
+class Box:
+    """A box of edge lengths ``size`` centred on ``center``, turned by ``angle`` rad about
+    ``axis`` (right-hand rule) from axis-aligned."""
+
+    center: tuple = _field((0.0, 0.0, 0.0), _vector3())
+    size: tuple = _field((1.0, 1.0, 1.0), _vector3())
+    axis: tuple = _field((0.0, 1.0, 0.0), _vector3(nonzero=True))
+    angle: float = _field(0.0, _number())
+    friction: float = _field(0.0, _number(minimum=0))
+    motion: "Motion | None" = None
 
 
 @dataclass(frozen=True)
@@ -246,6 +272,7 @@ class MeshCollider:
     frames: Path | None = _field(None, _path)
     fps: float = _field(30.0, _number(minimum=0, exclusive=True))
     friction: float = _field(0.0, _number(minimum=0))
+    motion: "Motion | None" = None
 
     @property
     def source(self):
@@ -253,7 +280,8 @@ class MeshCollider:
         return next((k, getattr(self, k)) for k in ("ply", "obj", "frames") if getattr(self, k))
 
 
-COLLIDER_KINDS = {"sphere": Sphere, "plane": Plane, "mesh": MeshCollider}
+COLLIDER_KINDS = {"sphere": Sphere, "plane": Plane, "capsule": Capsule, "box": Box,
+                  "mesh": MeshCollider}
 
 
 @dataclass(frozen=True)
@@ -297,15 +325,27 @@ class PinGroup:
 
 
 @dataclass(frozen=True)
+class Motion:
+    """A collider's rigid motion: x(t) = c + T(t) + R(θ(t))(x₀ − c), turning about the axis
+    through ``rotate.center`` (moving with the translation) and moving at
+    ``translate.velocity``, each until its own ``until``."""
+
+    rotate: Rotate | None = None
+    translate: Translate | None = None
+
+
+@dataclass(frozen=True)
 class Scene:
-    """``collision_margin`` (m): vertices are kept at least this far outside every collider
-    (and the surfaces of cloth and mesh colliders this far apart); ``self_collision``:
-    cloth–cloth contact, None = off."""
+    """``collision_margin`` (m): cloth is kept at least this far from every collider
+    surface; ``self_collision``: cloth–cloth contact, None = off. The contact barrier acts
+    within ``activation_distance`` (m) beyond the margin or the cloth's thickness; absent,
+    it is ACTIVATION (4 %) of each, so that resting cloth sits within 4 % of them."""
 
     gravity: tuple = _field((0.0, -9.81, 0.0), _vector3())
     pins: tuple = _field((), _pins)
     colliders: tuple = ()
-    collision_margin: float = _field(1.0e-3, _number(minimum=0))
+    collision_margin: float = _field(1.0e-3, _number(minimum=0, exclusive=True))
+    activation_distance: float | None = _field(None, _number(minimum=0, exclusive=True))
     self_collision: SelfCollision | None = None
 
 
@@ -322,7 +362,8 @@ class Solver:
     for (later Newton steps ask for less: Eisenstat–Walker); ``preconditioner`` is
     block Jacobi or an aggregation multigrid V-cycle. ``newton_iterations: 1`` is
     Baraff–Witkin's linearised step. A step whose speed exceeds ``max_speed`` (m/s)
-    counts as a blow-up.
+    counts as a blow-up. ``friction_velocity`` ε_v (m/s) is the sliding speed below
+    which contact friction holds (it creeps at most at ε_v where Coulomb's law sticks).
 
     ``method`` picks the solver (``clothtool.sim.solvers``, ``docs/solvers.md``):
     ``mass-spring`` uses the Newton/PCG keys above; ``pbd``, ``xpbd`` and
@@ -344,6 +385,7 @@ class Solver:
     preconditioner: str = _field("multigrid", _choice(PRECONDITIONERS))
     newton_iterations: int = _field(20, _integer(minimum=1))
     newton_tolerance: float = _field(0.04, _number(minimum=0))
+    friction_velocity: float = _field(1.0e-4, _number(minimum=0, exclusive=True))
     line_search: bool = _field(True, _flag)
     max_speed: float = _field(1000.0, _number(minimum=0, exclusive=True))
     # the alternative methods (clothtool.sim.solvers, docs/solvers.md); ignored by the others
@@ -479,25 +521,10 @@ def _build_config(raw, base):
             raise _type_error(name, "a mapping", value)
         sections[name] = _build_section(cls, value, name, base)
     config = Config(**sections)
-    _check_contact_scene(config.scene)
     given = {f"{name}.{key}" for name, section in raw.items() if isinstance(section, dict)
              for key in section}
     methods.check_supported(config, given)
     return config
-
-
-def _check_contact_scene(scene):
-    """Spheres and planes (vertex constraints, projected after the step) cannot share a scene
-    with mesh colliders or self-collision (barrier contact, no projection)."""
-    meshes = any(isinstance(c, MeshCollider) for c in scene.colliders)
-    if not (meshes or scene.self_collision is not None):
-        return
-    for i, c in enumerate(scene.colliders):
-        if not isinstance(c, MeshCollider):
-            kind = "sphere" if isinstance(c, Sphere) else "plane"
-            with_what = "mesh colliders" if meshes else "scene.self_collision"
-            raise InputError(f"scene.colliders[{i}].{kind}: spheres and planes cannot be combined "
-                             f"with {with_what}; give this collider as a mesh")
 
 
 def _build_section(cls, raw, prefix, base):
@@ -514,6 +541,10 @@ def _build_section(cls, raw, prefix, base):
             kwargs["grid"] = _build_section(GridSpec, value, key, base)
         elif cls is Scene and f.name == "colliders":
             kwargs["colliders"] = _build_colliders(value, key, base)
+        elif f.name == "motion" and cls in COLLIDER_KINDS.values():
+            if not isinstance(value, dict):
+                raise _type_error(key, "a mapping (rotate, translate)", value)
+            kwargs["motion"] = _build_motion(value, key)
         elif cls is Scene and f.name == "self_collision":
             if value is None:
                 continue
@@ -543,17 +574,31 @@ def _build_section(cls, raw, prefix, base):
     return section
 
 
+def _build_motion(raw, key):
+    _check_keys(raw, {"rotate", "translate"}, key)
+    parts = {}
+    for name, cls in (("rotate", Rotate), ("translate", Translate)):
+        if raw.get(name) is None:
+            continue
+        if not isinstance(raw[name], dict):
+            raise _type_error(f"{key}.{name}", "a mapping", raw[name])
+        parts[name] = _build_section(cls, raw[name], f"{key}.{name}", None)
+    if not parts:
+        raise InputError(f"{key} needs rotate and/or translate")
+    return Motion(**parts)
+
+
 def _build_colliders(value, key, base):
     if value is None:
         return ()
     if not isinstance(value, list):
-        raise _type_error(key, "a list of colliders (- sphere: {...}, - plane: {...} or "
-                          "- mesh: {...})", value)
+        raise _type_error(key, "a list of colliders (- sphere: {...}, - plane: {...}, "
+                          "- capsule: {...}, - box: {...} or - mesh: {...})", value)
     out = []
     for i, item in enumerate(value):
         here = f"{key}[{i}]"
         if not isinstance(item, dict) or len(item) != 1:
-            raise _type_error(here, "one of sphere: {...}, plane: {...}, mesh: {...}", item)
+            raise _type_error(here, "one of sphere, plane, capsule, box or mesh: {...}", item)
         (kind, body), = item.items()
         if kind not in COLLIDER_KINDS:
             raise InputError(f"{here}: unknown collider {kind!r}{_suggest(str(kind), COLLIDER_KINDS)}")

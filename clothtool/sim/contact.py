@@ -1,32 +1,36 @@
-"""Barrier contact in the Newton loop: mesh colliders and self-collision, never crossing.
+"""Barrier contact in the Newton loop: every collider and self-collision, never crossing.
 
-The incremental potential gains the barrier of :mod:`clothtool.contact.barrier` over
-vertex–triangle and edge–edge pairs of one vertex array: the cloth's N vertices, then
-the colliders' (held: they follow their own motion). Cloth–collider pairs keep
-``scene.collision_margin`` apart, cloth–cloth pairs ``self_collision.thickness``; the
-barrier acts within DHAT beyond that. Its stiffness κ = KAPPA·m̄·DHAT²/h² (J, m̄ the
-mean vertex mass) makes the barrier's stiffness comparable to the inertia term M/h²
-at the activation distance. Each Newton step's gradient and matrix take the barrier's
-gradient and Gauss–Newton Hessian (diagonal blocks in the matrix, the rest
-matrix-free in the PCG), and the line search starts from the collision-free fraction
-of the step (additive CCD), so every accepted iterate is intersection-free (Li et al.
-2020, "Incremental Potential Contact", §5). Moving pins and animated colliders move
-with the Newton steps (the pins as prescribed components of the solve, the colliders
-through the linearised barrier force they exert) and are held to the same fraction; a
-step that cannot bring them to their positions in ``solver.newton_iterations`` is a
-numerical failure.
+The incremental potential gains the barrier of :mod:`clothtool.contact.barrier` over the
+pairs of one vertex array: the cloth's N vertices, then the colliders'
+(:mod:`clothtool.sim.colliders`: meshes and boxes by their triangles, spheres, capsules
+and planes by their exact distance; all held, following their own motion).
+Cloth–collider pairs rest ``scene.collision_margin`` apart, cloth–cloth pairs
+``self_collision.thickness``: the barrier starts to push at that distance and rises to
+infinity at its wall d̂ closer in, d̂ = ``scene.activation_distance`` or ACTIVATION of the
+margin (or thickness). Its stiffness κ d̂² with κ = KAPPA·max(m̄/h², k) (J/m², m̄ the mean
+vertex mass, k the largest membrane stiffness) makes the barrier's stiffness comparable
+to the inertia term M/h² at the activation distance, so cloth under its own weight rests
+within a few per cent inside the margin, and no pair ever comes closer than the wall. Each Newton
+step's gradient and matrix take the barrier's gradient and Gauss–Newton Hessian (diagonal
+blocks in the matrix, the rest matrix-free in the PCG, :mod:`clothtool.sim.pairs`), and
+the line search starts from the collision-free fraction of the step (additive CCD), so
+every accepted iterate is intersection-free (Li et al. 2020, "Incremental Potential
+Contact", §5). Moving pins and moving colliders move with the Newton steps (the pins as
+prescribed components of the solve, the colliders through the linearised barrier force
+they exert) and are held to the same fraction; a step that cannot bring them to their
+positions in ``solver.newton_iterations`` is a numerical failure.
+
+Friction (Coulomb, coefficient of the collider or ``self_collision.friction``) is IPC's
+smoothed dissipative potential (:mod:`clothtool.contact.friction`) in the same
+minimisation: its pairs, normal forces and tangent bases are lagged from the start of
+the step and re-lagged at Newton's solution until the friction force they give changes
+the velocities by less than ``solver.newton_tolerance``.
 
 Candidate pairs are found for a reference configuration and a reach ρ_v per vertex
 (the larger of DELTA and 1.5 times the motion expected of the vertex in the step: h v,
 or its pin's or collider's own) and kept while every vertex stays within its reach, so
 the broad phase runs about once per step, or less in slow motion, and moving parts get
 a wide reach without widening it elsewhere.
-
-Friction (Coulomb, coefficient of the collider or ``self_collision.friction``) acts on
-the velocities after the step, pair by pair in a fixed order: the relative tangential
-velocity of the closest points loses at most μ λ h Σ_k w_k²/m_k, λ the pair's barrier
-force (Bridson, Fedkiw & Anderson 2002, "Robust treatment of collisions, contact and
-friction for cloth animation", §7.2). Positions are not changed.
 """
 
 from dataclasses import dataclass
@@ -34,16 +38,18 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from clothtool.contact.barrier import (contact_assemble, contact_energy,
-                                       gauss_newton_add_diagonal, gauss_newton_coupling,
-                                       pair_thickness, solve_operator)
+from clothtool.contact.barrier import (POINT_PLANE, barrier_blocks, contact_assemble,
+                                       contact_energy, pair_distance, pair_geometry,
+                                       pair_thickness)
 from clothtool.contact.broadphase import contact_stencils, mesh_edges
 from clothtool.contact.ccd import collision_free_step, near_pairs
+from clothtool.contact.friction import friction_assemble, friction_energy, friction_lag
 from clothtool.contact.intersect import intersecting_pairs
 from clothtool.errors import InputError, NumericalError
+from clothtool.sim.pairs import pair_operator, pairs_add_diagonal, pairs_coupling
 
-DHAT = 1.0e-3  # m: activation distance of the barrier beyond the thickness
-KAPPA = 1.0  # barrier stiffness in units of m̄ DHAT² / h²
+ACTIVATION = 0.5  # activation distance d̂ as a fraction of the margin and the thickness
+KAPPA = 1.0  # barrier stiffness in units of max(m̄/h², k) per d̂²
 DELTA = 2.0e-3  # m: smallest reach of a candidate set beyond its reference positions
 
 
@@ -52,26 +58,36 @@ class ContactScene:
     """The contact data of a Model: one vertex array of cloth (first) and colliders."""
 
     n_cloth: int
-    colliders: object  # ColliderMeshes or None
-    faces: np.ndarray  # (F, 3) cloth faces, then collider faces
-    edges: np.ndarray  # (E, 2)
-    obstacle: np.ndarray  # (N + V,) bool: collider vertices
-    rest: np.ndarray  # (N + V, 3) rest shape (edge lengths of the mollifier)
+    n_cloth_faces: int
+    colliders: object  # clothtool.sim.colliders.Colliders or None
+    faces: np.ndarray  # (F, 3) cloth faces, then collider triangles
+    edges: np.ndarray  # (E, 2) their edges and the capsules' axes
+    planes: np.ndarray  # (P, 2) plane vertex pairs (o, t)
+    points: np.ndarray  # (Q,) the vertices that are surface points (all but the planes')
     self_contact: bool
-    xi_self: float
-    xi_obstacle: float
     mu_self: float
     mu: np.ndarray  # (N + V,) friction of each collider vertex (0 for cloth)
+    geometry: tuple  # clothtool.contact.barrier.pair_geometry
 
     @property
     def n_total(self):
-        return len(self.obstacle)
+        return len(self.mu)
+
+    @property
+    def obstacle(self):
+        return self.geometry[0]
+
+    @property
+    def reach(self):
+        """How far beyond a surface pairs take part: the largest ξ + d̂ (radii apart)."""
+        g = self.geometry
+        return max(g[3] + g[5], g[4] + g[6])
 
 
 def build_contact_scene(config, mesh):
-    """The :class:`ContactScene` of a config and its rest mesh, or None without mesh
-    colliders and self-collision."""
-    from clothtool.sim.meshcollider import load_colliders
+    """The :class:`ContactScene` of a config and its rest mesh, or None without colliders
+    and self-collision."""
+    from clothtool.sim.colliders import load_colliders
 
     scene = config.scene
     colliders = load_colliders(scene.colliders)
@@ -79,22 +95,40 @@ def build_contact_scene(config, mesh):
         return None
     n = len(mesh.positions)
     v = colliders.n_vertices if colliders is not None else 0
-    faces = [mesh.faces]
-    rest = [mesh.rest3d]
+    faces, rest, edges = [mesh.faces], [mesh.rest3d], []
+    planes, points = np.zeros((0, 2), np.int64), np.arange(n)
+    radius, mu = np.zeros(n + v), np.zeros(n + v)
     if colliders is not None:
         faces.append(colliders.faces + n)
         rest.append(colliders.positions(0.0))
+        edges.append(colliders.edges + n)
+        planes = colliders.planes + n
+        points = np.concatenate([points, colliders.points + n])
+        radius[n:] = colliders.radius
+        mu[n:] = colliders.friction
     faces = np.concatenate(faces).astype(np.int64)
+    edges = np.concatenate([mesh_edges(faces)] + edges).astype(np.int64)
     obstacle = np.zeros(n + v, dtype=np.bool_)
     obstacle[n:] = True
-    mu = np.zeros(n + v)
-    if colliders is not None:
-        mu[n:] = colliders.friction
     sc = scene.self_collision
-    return ContactScene(n, colliders, faces, mesh_edges(faces), obstacle,
-                        np.ascontiguousarray(np.concatenate(rest)), sc is not None,
-                        sc.thickness if sc is not None else 0.0, scene.collision_margin,
-                        sc.friction if sc is not None else 0.0, mu)
+    xi_self = sc.thickness if sc is not None else 0.0
+    xi_obstacle = scene.collision_margin
+    dhat = scene.activation_distance
+
+    def zone(xi, key):  # (wall, d̂): the barrier acts from ξ in to its wall at ξ − d̂
+        d = ACTIVATION * xi if dhat is None else dhat
+        if d >= xi and xi > 0.0:
+            raise InputError(f"scene.activation_distance ({dhat:g} m) must be below {key} "
+                             f"({xi:g} m): the barrier's wall is that much closer in")
+        return xi - d, d
+
+    wall_self, dhat_self = zone(xi_self, "self_collision.thickness")
+    wall_obstacle, dhat_obstacle = zone(xi_obstacle, "scene.collision_margin")
+    geometry = pair_geometry(obstacle, radius, np.concatenate(rest), wall_self, wall_obstacle,
+                             dhat_self, dhat_obstacle)
+    return ContactScene(n, len(mesh.faces), colliders, faces, edges, planes.astype(np.int64),
+                        points.astype(np.int64), sc is not None,
+                        sc.friction if sc is not None else 0.0, mu, geometry)
 
 
 @njit(cache=True)
@@ -136,63 +170,58 @@ def _max_norm(dy):
     return np.sqrt(worst)
 
 
-@njit(cache=True)
-def contact_friction(v, inv_mass, stencils, active, n_active, weights, normals, force,
-                     obstacle, mu, mu_self, h):
-    """Coulomb friction on velocities v (N + V, 3), in place, pair by pair (see module)."""
-    for a in range(n_active):
-        st = stencils[active[a]]
-        m = mu_self
-        for j in range(4):
-            if obstacle[st[j]]:
-                m = mu[st[j]]
-        if m == 0.0 or force[a] == 0.0:
-            continue
-        u = np.zeros(3)
-        denom = 0.0
-        for j in range(4):
-            denom += weights[a, j] ** 2 * inv_mass[st[j]]
-            for i in range(3):
-                u[i] += weights[a, j] * v[st[j], i]
-        un = u[0] * normals[a, 0] + u[1] * normals[a, 1] + u[2] * normals[a, 2]
-        for i in range(3):
-            u[i] -= un * normals[a, i]
-        ut = np.sqrt(u[0] ** 2 + u[1] ** 2 + u[2] ** 2)
-        if denom == 0.0 or ut == 0.0:
-            continue
-        scale = min(1.0, m * force[a] * h * denom / ut)
-        for j in range(4):
-            c = -scale * inv_mass[st[j]] * weights[a, j] / denom
-            for i in range(3):
-                v[st[j], i] += c * u[i]
+def _lagged_pairs(k):
+    """Room for k lagged friction pairs: (rows, weights, tangent bases, μλ, c)."""
+    return (np.zeros((k, 4), np.int64), np.zeros((k, 4)), np.zeros((k, 3, 2)), np.zeros(k),
+            np.zeros((k, 3)))
 
 
 class BarrierContact:
     """The contact term of one run's Newton integrator (workspace only, see module)."""
 
-    def __init__(self, scene, mass, free, h, stiffness):
+    def __init__(self, scene, mass, free, h, stiffness, friction_velocity):
         self.scene = scene
         self.h = h
         n, total = scene.n_cloth, scene.n_total
-        self.kappa = KAPPA * max(float(np.mean(mass)) / (h * h), stiffness) * DHAT * DHAT
-        self.reach = DHAT + max(scene.xi_obstacle, scene.xi_self)
+        self.kappa = KAPPA * max(float(np.mean(mass)) / (h * h), stiffness)
+        self.reach = scene.reach
+        self.geometry = scene.geometry
         self.inv_mass = np.zeros(total)
         self.inv_mass[:n] = np.where(free, 1.0 / mass, 0.0)
         self.y = np.zeros((total, 3))  # cloth then collider positions
         self.dy = np.zeros((total, 3))
-        self.target = None  # collider positions at the end of the step
+        self.moving = scene.colliders is not None and scene.colliders.moving
+        self.target = None  # collider positions at the end of the step (moving colliders)
         self._ref = None  # reference positions of the candidate set
         self._rho = None  # (N + V,) reach of the candidate set around them
         self._live_motion = False  # live pairs (of the last CCD's motion) hold the iterate
         self.active = np.zeros(0, np.int64)  # pair data, sized to the largest candidate set
         self.weights, self.normals = np.zeros((0, 4)), np.zeros((0, 3))
-        self.coef, self.force = np.zeros(0), np.zeros(0)
+        self.coef, self.force, self.tilt = np.zeros(0), np.zeros(0), np.zeros((0, 2, 4))
+        self._rows, self._w = np.zeros((0, 4), np.int64), np.zeros((0, 4))
+        self._blocks = np.zeros((0, 3, 3))
         self._grad = np.zeros((total, 3))
         self.operator = None
         self.contacts = 0
         self.min_separation = np.inf
+        # friction (clothtool.contact.friction): the lagged pairs, the step's b and ĥ, and
+        # the colliders' velocities (vertex velocities and rigid fields) in the step
+        self.eps_v = friction_velocity
+        self.friction = scene.mu_self > 0.0 or bool(np.any(scene.mu > 0.0))
+        self.velocity = np.zeros((total, 3))
+        self.field = np.zeros((total, 9))
+        self.rigid = np.zeros(total, dtype=np.bool_)
+        self.base, self.h_eff = None, h
+        self.lag = _lagged_pairs(0)
+        self.n_lag = 0
 
     # ------------------------------------------------------------------ candidates
+
+    def _stencils(self, y, dy, rho):
+        sc = self.scene
+        return contact_stencils(y, dy, rho, sc.points, sc.faces, sc.edges, sc.planes,
+                                sc.n_cloth, sc.obstacle, self.geometry[1], sc.self_contact,
+                                self.reach)
 
     def _ensure(self, y, dy):
         """Make the candidates hold every pair within reach on y → y + dy. They are the
@@ -202,18 +231,13 @@ class BarrierContact:
         boxes (for its line search and the assembly after it)."""
         if self._ref is not None and _within(y, dy, self._ref, self._rho):
             return
-        sc = self.scene
         if _mean_norm(dy) > 2.0 * DELTA:  # the whole scene moves fast: this motion's pairs
             self._ref = None
-            self.stencils, self.n_pt = contact_stencils(
-                y, dy, np.zeros(len(y)), sc.faces, sc.edges, sc.obstacle, sc.self_contact,
-                self.reach)
+            self.stencils = self._stencils(y, dy, np.zeros(len(y)))
         else:
             self._ref = y.copy()
             self._rho = _radii(dy, DELTA, 1.5)
-            self.stencils, self.n_pt = contact_stencils(
-                y, np.zeros_like(y), self._rho, sc.faces, sc.edges, sc.obstacle,
-                sc.self_contact, self.reach)
+            self.stencils = self._stencils(y, np.zeros_like(y), self._rho)
         k = len(self.stencils)
         if len(self.active) < k:
             self.active = np.zeros(k, np.int64)
@@ -221,50 +245,95 @@ class BarrierContact:
             self.normals = np.zeros((k, 3))
             self.coef = np.zeros(k)
             self.force = np.zeros(k)
+            self.tilt = np.zeros((k, 2, 4))
 
-    def _assemble(self, y):
+    def _assemble(self, y, held=False):
         """contact_assemble at y over the live pairs when y is on their motion, else over the
-        candidates; the pairs assembled are kept in ``assembled``."""
-        sc = self.scene
+        candidates (made to hold y unless ``held`` says they do); the pairs assembled are
+        kept in ``assembled``."""
         self._grad[:] = 0.0
         if self._live_motion:
             self._live_motion = False
-            self.assembled, n_pt = self.live, self.n_live_pt
+            self.assembled = self.live
         else:
-            self._ensure(y, np.zeros_like(y))
-            self.assembled, n_pt = self.stencils, self.n_pt
-        return contact_assemble(y, self.assembled, n_pt, sc.obstacle, sc.rest, sc.xi_self,
-                                sc.xi_obstacle, DHAT, self.kappa, self._grad, self.active,
-                                self.weights, self.normals, self.coef, self.force)
+            if not held:
+                self._ensure(y, np.zeros_like(y))
+            self.assembled = self.stencils
+        return contact_assemble(y, self.assembled, self.geometry, self.kappa, self._grad,
+                                self.active, self.weights, self.normals, self.coef, self.force,
+                                self.tilt)
 
-    # ------------------------------------------------------------------ the step
+    # ------------------------------------------------------------------ crossings
+
+    def crossing(self, x, t):
+        """A description of the first crossing of cloth positions x at time t (a cloth
+        triangle through another or through a collider), or None."""
+        sc = self.scene
+        y = self._positions(x, t)
+        pairs = intersecting_pairs(y, sc.faces, sc.obstacle, sc.edges)
+        if len(pairs):
+            edge, face = sc.edges[pairs[0][0]], pairs[0][1]
+            tri = _face_of_vertices(sc.faces[:sc.n_cloth_faces], edge) if edge[0] < sc.n_cloth else None
+            if tri is None:  # a collider edge through a cloth triangle
+                return f"cloth triangle {face} crosses {self._collider_name(edge[0], None)}"
+            return f"cloth triangle {tri} crosses {self._triangle_name(face)}"
+        stencils = self._stencils(y, np.zeros_like(y), np.zeros(len(y)))
+        k = _first_shape_crossing(y, stencils, self.geometry[1], sc.obstacle)
+        if k < 0:
+            return None
+        st = stencils[k]
+        cloth = [v for v in st[:4] if v < sc.n_cloth]
+        collider = next(v for v in st[:4] if v >= sc.n_cloth)
+        tri = (_face_of_vertices(sc.faces[:sc.n_cloth_faces], cloth)
+               if st[4] != POINT_PLANE else None)
+        what = f"cloth triangle {tri}" if tri is not None else f"cloth vertex {cloth[0]}"
+        return f"{what} crosses {self._collider_name(collider, None)}"
+
+    def _triangle_name(self, face):
+        sc = self.scene
+        if face < sc.n_cloth_faces:
+            return f"cloth triangle {face}"
+        return self._collider_name(sc.faces[face][0], face)
+
+    def _collider_name(self, vertex, face):
+        """The config key of the collider owning a vertex, with its triangle when given."""
+        cs = self.scene.colliders
+        c = cs.owner(vertex - self.scene.n_cloth)
+        if face is None:
+            return cs.keys[c]
+        first = self.scene.n_cloth_faces + int(np.sum(
+            cs.faces[:, 0] < cs.offsets[c]))  # the collider's first triangle
+        return f"{cs.keys[c]} triangle {face - first}"
 
     def check_initial(self, x0):
         """InputError when the initial cloth crosses a surface or is within a thickness."""
+        what = self.crossing(x0, 0.0)
+        if what is not None:
+            raise InputError(f"the initial state is not intersection-free: {what}")
         sc = self.scene
         y = self._positions(x0, 0.0)
-        pairs = intersecting_pairs(y, sc.faces, sc.obstacle, sc.edges)
-        if len(pairs):
-            raise InputError(f"the initial cloth crosses {self._what(pairs[0])}; contact needs "
-                             "an intersection-free start")
         self._ensure(y, np.zeros_like(y))
-        if contact_energy(y, self.stencils, self.n_pt, sc.obstacle, sc.rest, sc.xi_self,
-                          sc.xi_obstacle, 0.0, 1.0) < np.inf:
+        if contact_energy(y, self.stencils, self.geometry, 1.0) < np.inf:
             return
-        for k, st in enumerate(self.stencils):  # name the first pair that is too close
-            xi = pair_thickness(st, sc.obstacle, sc.xi_self, sc.xi_obstacle)
-            if contact_energy(y, self.stencils[k:k + 1], 1 if k < self.n_pt else 0, sc.obstacle,
-                              sc.rest, xi, xi, 0.0, 1.0) == np.inf:
-                which = ("collision_margin of a collider" if sc.obstacle[st].any()
-                         else "self_collision.thickness of itself")
-                raise InputError(f"the initial cloth is within scene.{which} (vertices "
-                                 f"{', '.join(map(str, st[st < sc.n_cloth]))}); start it "
-                                 "farther away")
+        r = np.empty(3)
+        w = np.empty(4)
+        for st in self.stencils:  # name the first pair that is too close
+            xi = pair_thickness(st, self.geometry)[0]
+            if pair_distance(y, st, w, r) <= xi * xi:
+                cloth = ", ".join(str(v) for v in st[:4] if v < sc.n_cloth)
+                collider = next((v for v in st[:4] if v >= sc.n_cloth), None)
+                which = ("itself than half its self_collision.thickness" if collider is None
+                         else f"{self._collider_name(collider, None)} than half the "
+                              "scene.collision_margin")
+                raise InputError(f"the initial cloth (vertices {cloth}) is closer to {which} "
+                                 "(the contact barrier's wall); start it farther away")
 
-    def _what(self, pair):
-        sc = self.scene
-        e, f = sc.edges[pair[0]], sc.faces[pair[1]]
-        return "a collider" if sc.obstacle[np.concatenate([e, f])].any() else "itself"
+    def check_frame(self, x, t, frame, out_dir):
+        """NumericalError when the frame at cloth positions x, time t, has a crossing."""
+        what = self.crossing(x, t)
+        if what is not None:
+            raise NumericalError(f"simulation failed at frame {frame}: {what}; frames before "
+                                 f"it are in {out_dir}")
 
     def _positions(self, x, t):
         y = np.empty((self.scene.n_total, 3))
@@ -273,32 +342,90 @@ class BarrierContact:
             y[self.scene.n_cloth:] = self.scene.colliders.positions(t)
         return y
 
-    def begin(self, x, v, t, moving, goal):
-        """Start a step from cloth positions x and velocities v at time t, with the moving
-        pins ``moving`` bound for ``goal`` (None without): candidates for the motion the
-        step is expected to make (h v, the pins' and colliders' own)."""
+    # ------------------------------------------------------------------ the step
+
+    def begin(self, state, moving, goal, base, h_eff):
+        """Start a step from ``state`` with the moving pins ``moving`` bound for ``goal``
+        (None without): candidates for the motion the step is expected to make (h v, the
+        pins' and colliders' own), and the friction pairs lagged at the start (the
+        integrator's velocity is (x − base)/ĥ)."""
         n = self.scene.n_cloth
+        x, v, t = state.x, state.v, state.time
         self.y = self._positions(x, t)
         expected = np.zeros_like(self.y)
         expected[:n] = self.h * v
         if goal is not None:
             expected[moving] = goal - x[moving]
-        if self.scene.colliders is not None and self.scene.colliders.animated:
-            self.start = self.y[n:].copy()
-            self.target = self.scene.colliders.positions(t + self.h)
-            expected[n:] = self.target - self.start
+        if self.moving:
+            colliders = self.scene.colliders
+            self.target = colliders.positions(t + self.h)
+            expected[n:] = self.target - self.y[n:]
+            self.velocity[n:] = expected[n:] / self.h
+            self.field[n:], self.rigid[n:] = colliders.fields(t + self.h)
         self._ensure(self.y, expected)
+        if self.friction:
+            self.base, self.h_eff = base, h_eff
+            self._live_motion = False
+            self._lag(self.y, held=True)
+
+    def _lag(self, y, held=False):
+        """Lag the friction pairs at the positions y (cloth and colliders)."""
+        sc = self.scene
+        _, n_act, _ = self._assemble(y, held)
+        if len(self.lag[0]) < n_act:
+            self.lag = _lagged_pairs(len(self.active))
+        self.n_lag = friction_lag(y, self.assembled, self.active, n_act, self.weights,
+                                  self.normals, self.force, sc.obstacle, sc.mu, sc.mu_self,
+                                  self.velocity, self.field, self.rigid, sc.n_cloth, *self.lag)
+
+    def _friction_gradient(self, x):
+        """∇D (N, 3) of the lagged pairs at cloth positions x."""
+        n = self.scene.n_cloth
+        grad = np.zeros((n, 3))
+        blocks = np.empty((self.n_lag, 3, 3))
+        friction_assemble(x, self.base, self.h_eff, self.eps_v, *self.lag, self.n_lag, n, grad,
+                          blocks)
+        return grad
+
+    def relag(self, x):
+        """Re-lag the friction pairs at the cloth positions x; returns how much that changes
+        the friction force, as the largest velocity change ĥ‖ΔF_v‖/m_v it makes (m/s); 0
+        without friction."""
+        if not self.friction:
+            return 0.0
+        n = self.scene.n_cloth
+        before = self._friction_gradient(x)
+        self.y[:n] = x
+        self._lag(self.y)
+        change = self._friction_gradient(x) - before
+        return float(np.max(np.sqrt(np.sum(change * change, axis=1)) * self.h_eff
+                            * self.inv_mass[:n]))
 
     def assemble(self, x, grad, matrix):
-        """E_c at the cloth positions x; adds ∇E_c into grad (N, 3), the diagonal Hessian
-        blocks into the matrix, and keeps the rest for the PCG (``operator``)."""
+        """E_c + D at the cloth positions x; adds their gradient into grad (N, 3), the
+        diagonal Hessian blocks into the matrix, and keeps the whole Hessian as a pair
+        operator for the PCG (``operator``)."""
         n = self.scene.n_cloth
         self.y[:n] = x
         energy, n_act, _ = self._assemble(self.y)
         grad += self._grad[:n]
-        self.operator = solve_operator(self.assembled, self.active, n_act, self.weights,
-                                       self.normals, self.coef, n)
-        gauss_newton_add_diagonal(self.operator, matrix.pattern.diag, matrix.values)
+        room = 3 * n_act + self.n_lag  # a pair and its tilt terms, and the friction pairs
+        if len(self._rows) < room:
+            self._rows = np.zeros((2 * room, 4), np.int64)
+            self._w = np.zeros((2 * room, 4))
+            self._blocks = np.zeros((2 * room, 3, 3))
+        n_act = barrier_blocks(self.assembled, self.active, n_act, self.weights, self.normals,
+                               self.coef, self.force, self.tilt, self.y, self._rows, self._w,
+                               self._blocks)
+        size = n_act + self.n_lag
+        if self.n_lag:
+            rows, w, bases, mu_lambda, c = self.lag
+            self._rows[n_act:size] = rows[:self.n_lag]
+            self._w[n_act:size] = w[:self.n_lag]
+            energy += friction_assemble(x, self.base, self.h_eff, self.eps_v, rows, w, bases,
+                                        mu_lambda, c, self.n_lag, n, grad, self._blocks[n_act:size])
+        self.operator = pair_operator(self._rows, self._w, self._blocks, size, n)
+        pairs_add_diagonal(self.operator, matrix.pattern.diag, matrix.values)
         return energy
 
     def _free_step(self):
@@ -306,11 +433,9 @@ class BarrierContact:
         on it become the live pairs of its line search and of the assembly after it."""
         self._ensure(self.y, self.dy)
         sc = self.scene
-        self.live, self.n_live_pt = near_pairs(self.y, self.dy, self.stencils, self.n_pt,
-                                               self.reach)
+        self.live = near_pairs(self.y, self.dy, self.stencils, self.geometry, self.reach)
         self._live_motion = True
-        return collision_free_step(self.y, self.dy, self.live, self.n_live_pt, sc.obstacle,
-                                   sc.xi_self, sc.xi_obstacle, 1.0)
+        return collision_free_step(self.y, self.dy, self.live, self.geometry, 1.0)
 
     def max_step(self, dx):
         """The collision-free fraction of the motion: the cloth by dx, the colliders the rest
@@ -328,7 +453,7 @@ class BarrierContact:
         n = self.scene.n_cloth
         self.dy[:n] = 0.0
         self.dy[n:] = self.target - self.y[n:]
-        gauss_newton_coupling(self.operator, self.dy, rhs, -1.0)
+        pairs_coupling(self.operator, self.dy, rhs, -1.0)
 
     def advance(self, step):
         """Move the colliders by ``step`` of their motion in :meth:`max_step` (exactly to
@@ -338,10 +463,14 @@ class BarrierContact:
             self.y[n:] = self.target if step == 1.0 else self.y[n:] + step * self.dy[n:]
 
     def energy(self, step):
-        """E_c after moving by ``step`` times the motion of :meth:`max_step`."""
+        """E_c + D after moving by ``step`` times the motion of :meth:`max_step`."""
         sc = self.scene
-        return contact_energy(self.y + step * self.dy, self.live, self.n_live_pt, sc.obstacle,
-                              sc.rest, sc.xi_self, sc.xi_obstacle, DHAT, self.kappa)
+        y = self.y + step * self.dy
+        e = contact_energy(y, self.live, self.geometry, self.kappa)
+        if self.n_lag:
+            e += friction_energy(y, self.base, self.h_eff, self.eps_v, *self.lag, self.n_lag,
+                                 sc.n_cloth)
+        return e
 
     def colliders_behind(self):
         """How far (m) the colliders still are from their positions at the end of the step."""
@@ -349,27 +478,35 @@ class BarrierContact:
             return 0.0
         return _max_norm(self.target - self.y[self.scene.n_cloth:])
 
-    def finish(self, state, h_eff):
-        """After the step: friction on state.v (ĥ the integrator's velocity step), and the
-        contacts and smallest distance."""
-        sc = self.scene
-        n = sc.n_cloth
-        self.y[:n] = state.x
-        _, n_act, dmin = self._assemble(self.y)
-        self.contacts, self.min_separation = n_act, dmin
-        if sc.mu_self > 0.0 or np.any(sc.mu > 0.0):
-            v = np.zeros((sc.n_total, 3))
-            v[:n] = state.v
-            if self.target is not None:  # the colliders' own velocity over the step
-                v[n:] = (self.target - self.start) / self.h
-            contact_friction(v, self.inv_mass, self.assembled, self.active, n_act, self.weights,
-                             self.normals, self.force, sc.obstacle, sc.mu, sc.mu_self, h_eff)
-            state.v = v[:n].copy()
+    def finish(self, x):
+        """After the step at cloth positions x: the number of contacts and the smallest
+        distance between surfaces."""
+        n = self.scene.n_cloth
+        self.y[:n] = x
+        _, self.contacts, self.min_separation = self._assemble(self.y)
 
-    def check_frame(self, x, t, frame, out_dir):
-        """NumericalError when the frame at cloth positions x, time t, has a crossing."""
-        sc = self.scene
-        pairs = intersecting_pairs(self._positions(x, t), sc.faces, sc.obstacle, sc.edges)
-        if len(pairs):
-            raise NumericalError(f"simulation failed at frame {frame}: the cloth would cross "
-                                 f"{self._what(pairs[0])}; frames before it are in {out_dir}")
+
+def _face_of_vertices(faces, vertices):
+    """The first triangle of faces holding all the given vertices, or None."""
+    hit = np.all([np.any(faces == v, axis=1) for v in vertices], axis=0)
+    k = np.flatnonzero(hit)
+    return int(k[0]) if len(k) else None
+
+
+@njit(cache=True)
+def _first_shape_crossing(y, stencils, radius, obstacle):
+    """The first pair of an analytic collider (a vertex with a radius, or a plane) whose
+    surfaces touch or cross at y, or −1."""
+    w = np.empty(4)
+    r = np.empty(3)
+    for k in range(stencils.shape[0]):
+        st = stencils[k]
+        big_r = 0.0
+        shape = st[4] == POINT_PLANE
+        for j in range(4):
+            if obstacle[st[j]] and radius[st[j]] > 0.0:
+                shape = True
+                big_r = max(big_r, radius[st[j]])
+        if shape and pair_distance(y, st, w, r) <= big_r * big_r:
+            return k
+    return -1

@@ -29,10 +29,10 @@ from dataclasses import dataclass
 
 from clothtool.errors import InputError
 
-# optional config features a method may support (pins and colliders work with every method:
-# colliders at least project vertices out after each step)
+# optional config features a method may support (pins, spheres and planes work with every
+# method: without barrier contact, spheres and planes project vertices out after each step)
 FRICTION = "friction"  # Coulomb friction on colliders (scene.colliders[i].*.friction > 0)
-CONTACT = "contact"  # mesh colliders and self-collision: barrier contact, intersection-free
+CONTACT = "contact"  # barrier contact (capsules, boxes, meshes, moving colliders, self-collision)
 MOVING_PINS = "moving pins"  # scene.pins entries with rotate or translate
 BDF2 = "bdf2"  # solver.integrator: bdf2 (the default; refused only when a config sets it)
 FEATURES = (FRICTION, CONTACT, MOVING_PINS, BDF2)
@@ -75,10 +75,12 @@ def requested_features(config, given=()):
     if config.solver.integrator == "bdf2" and "solver.integrator" in given:
         out.append((BDF2, "solver.integrator: bdf2"))
     for i, collider in enumerate(config.scene.colliders):
-        kind = {"Sphere": "sphere", "Plane": "plane"}.get(type(collider).__name__, "mesh")
-        if kind == "mesh":
-            out.append((CONTACT, f"scene.colliders[{i}].mesh"))
-        elif collider.friction > 0:
+        kind = type(collider).__name__.lower().replace("meshcollider", "mesh")
+        if kind not in ("sphere", "plane"):
+            out.append((CONTACT, f"scene.colliders[{i}].{kind}"))
+        if collider.motion is not None:
+            out.append((CONTACT, f"scene.colliders[{i}].{kind}.motion"))
+        if collider.friction > 0:
             out.append((FRICTION, f"scene.colliders[{i}].{kind}.friction"))
     if config.scene.self_collision is not None:
         out.append((CONTACT, "scene.self_collision"))
@@ -89,12 +91,19 @@ def requested_features(config, given=()):
     return out
 
 
+def barrier_contact(config):
+    """Does the config's method put colliders and self-collision into a contact barrier?"""
+    return CONTACT in METHODS[config.solver.method].supports
+
+
 def check_supported(config, given=()):
     """Raise InputError for the first feature of ``config`` its method does not support."""
     method = METHODS[config.solver.method]
     for feature, key in requested_features(config, given):
         if feature not in method.supports:
-            raise InputError(f"solver.method: {method.name!r} does not support {key} "
+            why = (" (it has no barrier contact: spheres and planes only, projected)"
+                   if feature == CONTACT else "")
+            raise InputError(f"solver.method: {method.name!r} does not support {key}{why} "
                              f"(supported by: {', '.join(m.name for m in METHODS.values() if feature in m.supports)})")
 
 

@@ -18,6 +18,7 @@ from clothtool.sim.blocksparse import BlockPattern, scatter_blocks
 from clothtool.sim.contact import build_contact_scene
 from clothtool.sim.filter import FREE, PINNED
 from clothtool.sim.config import Plane, Sphere
+from clothtool.sim.methods import barrier_contact
 from clothtool.geometry import hinges
 from clothtool.sim.mesh import build_rest_mesh, rest_edge_matrices
 from clothtool.sim.motion import resolve_pin_entries
@@ -43,10 +44,9 @@ class Model:
     hinge_weights: np.ndarray | None  # (H, 4) for the quadratic model
     pinned: np.ndarray  # (P,) vertex indices
     free: np.ndarray  # (N,) bool
-    kind: np.ndarray  # (N,) int8 constraint kind: FREE or PINNED (contacts are added per step)
-    spheres: np.ndarray  # (S, 4) centre, radius
-    planes: np.ndarray  # (Q, 6) point, unit normal
-    friction: np.ndarray  # (S + Q,) Coulomb coefficient per collider, spheres first
+    kind: np.ndarray  # (N,) int8 constraint kind: FREE or PINNED
+    spheres: np.ndarray  # (S, 4) centre, radius (projected, without barrier contact)
+    planes: np.ndarray  # (Q, 6) point, unit normal (likewise)
     collision_margin: float
     pattern: BlockPattern
     tri_slots: np.ndarray  # (M, 9)
@@ -138,8 +138,12 @@ def build_model(config):
     kind = np.full(n, FREE, dtype=np.int8)
     kind[pinned] = PINNED
 
-    spheres = [c for c in config.scene.colliders if isinstance(c, Sphere)]
-    planes = [c for c in config.scene.colliders if isinstance(c, Plane)]
+    # the methods with barrier contact take every collider into it; the others project
+    # vertices out of spheres and planes (clothtool.sim.collide)
+    contact = build_contact_scene(config, mesh) if barrier_contact(config) else None
+    projected = () if contact is not None else config.scene.colliders
+    spheres = [c for c in projected if isinstance(c, Sphere)]
+    planes = [c for c in projected if isinstance(c, Plane)]
     sphere_arr = np.array([[*c.center, c.radius] for c in spheres], dtype=np.float64).reshape(-1, 4)
     plane_arr = np.array([[*c.point, *(np.asarray(c.normal) / np.linalg.norm(c.normal))]
                           for c in planes], dtype=np.float64).reshape(-1, 6)
@@ -162,10 +166,9 @@ def build_model(config):
         bend_model=bend_model, hinge=hinge, hinge_rest_angle=rest_angle, hinge_coef=coef,
         hinge_weights=weights, pinned=pinned, free=free, kind=kind,
         spheres=sphere_arr, planes=plane_arr,
-        friction=np.array([c.friction for c in spheres + planes], dtype=np.float64),
         collision_margin=config.scene.collision_margin,
         pattern=pattern, tri_slots=tri_slots, hinge_slots=hinge_slots, constant_hessian=constant,
-        pin_motions=pin_motions, contact=build_contact_scene(config, mesh),
+        pin_motions=pin_motions, contact=contact,
     )
 
 

@@ -1,9 +1,10 @@
-"""Moving pins: pinned vertices on a rigid motion of their initial positions.
+"""Rigid motions of moving pins and colliders.
 
-A ``rotate`` group turns about the axis k̂ through c at ω rad/s (right-hand rule),
+A ``rotate`` motion turns about the axis k̂ through c at ω rad/s (right-hand rule),
 p(t) = c + R(θ)(p₀ − c) with θ = ω·min(t, until) and Rodrigues' formula
-R(θ)u = u cos θ + (k̂ × u) sin θ + k̂ (k̂·u)(1 − cos θ); a ``translate`` group
-moves at velocity u, p(t) = p₀ + u·min(t, until). After ``until`` the group holds.
+R(θ)u = u cos θ + (k̂ × u) sin θ + k̂ (k̂·u)(1 − cos θ); a ``translate`` motion
+moves at velocity u, p(t) = p₀ + u·min(t, until). After ``until`` it holds. A collider's
+``motion`` may have both: the centre moves with the translation.
 """
 
 from dataclasses import dataclass
@@ -15,26 +16,64 @@ from clothtool.sim.pins import pin_entry_vertices, resolve_pins
 
 
 @dataclass(frozen=True)
+class RigidMotion:
+    """x(t) = c + u·min(t, until_u) + R(ω·min(t, until_ω))(x₀ − c) (see the module)."""
+
+    center: np.ndarray  # (3,)
+    axis: np.ndarray  # (3,) unit
+    speed: float  # rad/s
+    until_rotate: float  # s (inf: the whole run)
+    velocity: np.ndarray  # (3,) m/s
+    until_translate: float
+
+    def positions(self, x0, t):
+        """(P, 3) positions at time t of points at x0 (P, 3) at t = 0."""
+        theta = self.speed * min(t, self.until_rotate)
+        u = x0 - self.center
+        k = self.axis
+        c, s = np.cos(theta), np.sin(theta)
+        ku = (u * k).sum(axis=1, keepdims=True)
+        turned = u * c + np.cross(k, u) * s + ku * k * (1.0 - c)
+        return self.center + self.velocity * min(t, self.until_translate) + turned
+
+    def field(self, t):
+        """(9,) the velocity field at time t as (centre c + T(t), angular velocity ω k̂,
+        translation velocity)."""
+        out = np.zeros(9)
+        out[:3] = self.center + self.velocity * min(t, self.until_translate)
+        if t < self.until_rotate:
+            out[3:6] = self.speed * self.axis
+        if t < self.until_translate:
+            out[6:] = self.velocity
+        return out
+
+
+def rigid_motion(motion):
+    """The :class:`RigidMotion` of a section with ``rotate`` and/or ``translate`` (a
+    collider's ``motion``, a pin group), None for None."""
+    if motion is None:
+        return None
+    rot, tra = motion.rotate, motion.translate
+    axis = np.asarray(rot.axis if rot else (1.0, 0.0, 0.0), dtype=np.float64)
+    inf = np.inf
+    return RigidMotion(
+        np.asarray(rot.center if rot else (0.0, 0.0, 0.0), dtype=np.float64),
+        axis / np.linalg.norm(axis), float(rot.speed) if rot else 0.0,
+        inf if rot is None or rot.until is None else float(rot.until),
+        np.asarray(tra.velocity if tra else (0.0, 0.0, 0.0), dtype=np.float64),
+        inf if tra is None or tra.until is None else float(tra.until))
+
+
+@dataclass(frozen=True)
 class PinMotion:
+    """A moving pin group: its vertices on a rigid motion of their initial positions."""
+
     vertices: np.ndarray  # (P,) int64
-    rotate: bool
-    center: np.ndarray  # (3,) rotate
-    axis: np.ndarray  # (3,) unit, rotate
-    speed: float  # rad/s, rotate
-    velocity: np.ndarray  # (3,) m/s, translate
-    until: float  # s (inf: the whole run)
+    motion: RigidMotion
 
     def positions(self, x0, t):
         """(P, 3) positions at time t of the group's vertices, initially x0 (P, 3)."""
-        s = min(t, self.until)
-        if not self.rotate:
-            return x0 + s * self.velocity
-        theta = self.speed * s
-        k = self.axis
-        u = x0 - self.center
-        c, sn = np.cos(theta), np.sin(theta)
-        ku = (u * k).sum(axis=1, keepdims=True)  # elementwise: no BLAS in the step
-        return self.center + u * c + np.cross(k, u) * sn + ku * k * (1.0 - c)
+        return self.motion.positions(x0, t)
 
 
 def resolve_pin_entries(entries, n_vertices, grid_shape, key="scene.pins"):
@@ -60,17 +99,8 @@ def resolve_pin_entries(entries, n_vertices, grid_shape, key="scene.pins"):
               else np.zeros(0, dtype=np.int64))
     motions = []
     for group, verts in zip(entries, per_entry):
-        m = getattr(group, "motion", None)
-        if m is None:
-            continue
-        until = np.inf if m.until is None else m.until
-        if group.rotate is not None:
-            axis = np.asarray(m.axis, dtype=np.float64)
-            motions.append(PinMotion(verts, True, np.asarray(m.center, dtype=np.float64),
-                                     axis / np.linalg.norm(axis), m.speed, np.zeros(3), until))
-        else:
-            motions.append(PinMotion(verts, False, np.zeros(3), np.zeros(3), 0.0,
-                                     np.asarray(m.velocity, dtype=np.float64), until))
+        if getattr(group, "motion", None) is not None:
+            motions.append(PinMotion(verts, rigid_motion(group)))
     return pinned.astype(np.int64), motions
 
 

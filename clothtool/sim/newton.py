@@ -37,30 +37,32 @@ search left of the previous step. A single Newton step (``newton_iterations: 1``
 the PCG guess h v_n: that is exactly Baraff–Witkin's linearised step
 (M − h ∂f/∂v − h² ∂f/∂x) Δv = h (f + h ∂f/∂x v_n) for backward Euler.
 
-Vertices held by pins or (for methods with ``contacts``) collider contacts
-(:mod:`clothtool.sim.collide`) are constrained in the solve through the filter.
+Vertices held by pins are constrained in the solve through the filter.
 
-With mesh colliders or self-collision (:mod:`clothtool.sim.contact`) the potential gains
-the contact barrier, Newton starts from x_n (collision-free) with the PCG guess x̃ − x_n,
+With contact (colliders or self-collision, :mod:`clothtool.sim.contact`, for the methods
+that support it) the potential gains the contact barrier and the friction potential,
+Newton starts from x_n (collision-free) with the PCG guess x̃ − x_n,
 and every Newton step is cut to its collision-free fraction before the line search, which
 starts there. Moving pins and animated colliders still short of their end-of-step
 positions move with the Newton steps: the pins as prescribed components of the solve, the
 colliders through the linearised barrier force −H_cX ΔX on the right-hand side; such a
 step is taken as far as it is collision-free (E need not fall: the prescribed motion adds
-energy), and a step that does not bring them there in ``newton_iterations`` is a
-numerical failure.
+energy), and a step that does not bring them there in twice ``newton_iterations`` is a
+numerical failure. A converged step re-lags the friction pairs and goes on while that
+changes the velocities by more than ``newton_tolerance``. Without barrier contact,
+spheres and planes project vertices out after the step (:mod:`clothtool.sim.collide`).
 """
 
 import numpy as np
 
-from clothtool.contact.barrier import NO_OPERATOR
 from clothtool.errors import NumericalError
 from clothtool.sim.blocksparse import BlockMatrix, ConstraintFilter, filtered_pcg
-from clothtool.sim.collide import apply_friction, contact_constraints, resolve_collisions
+from clothtool.sim.collide import resolve_collisions
 from clothtool.sim.contact import BarrierContact
 from clothtool.sim.filter import apply_filter
 from clothtool.sim.integrator import Integrator, StepReport, gravity_potential, mass_weighted
 from clothtool.sim.multigrid import make_preconditioner
+from clothtool.sim.pairs import NO_PAIRS
 
 MAX_HALVINGS = 30  # down to 2⁻³⁰: a descent direction always decreases E for a small enough step
 REACHED = 1e-9  # m: moving pins and animated colliders this close to their goal have reached it
@@ -92,13 +94,10 @@ def _filtered_norm(g, kind, normal, constrained):
 class NewtonIntegrator(Integrator):
     """Newton + filtered PCG on the incremental potential of an elastic energy.
 
-    A subclass names its energy (``energy_class``, see :mod:`clothtool.sim.energy`),
-    whether collider contacts are constraints of the solve with Coulomb friction
-    (``contacts``; otherwise colliders only project vertices out after the step) and
+    A subclass names its energy (``energy_class``, see :mod:`clothtool.sim.energy`) and
     whether it uses ``solver.preconditioner`` (``multigrid``; otherwise block Jacobi).
     """
 
-    contacts = False
     multigrid = False
 
     def __init__(self, model, solver, h):
@@ -112,14 +111,14 @@ class NewtonIntegrator(Integrator):
         self._tmp = np.zeros((n, 3))
         self._damped = np.zeros((n, 3))
         self._normal = np.zeros((n, 3))
-        self._contact = np.full(n, -1, dtype=np.int64)
         self._free_mass = float(np.sum(model.mass[model.free]))
         self.preconditioner = make_preconditioner(
             solver.preconditioner if self.multigrid else "jacobi", pattern, model.faces)
         self.contact = None  # mesh colliders and self-collision (clothtool.sim.contact)
         if model.contact is not None:
             self.contact = BarrierContact(model.contact, model.mass, model.free, h,
-                                          max(model.stretch[0], model.stretch[1], model.k_shear))
+                                          max(model.stretch[0], model.stretch[1], model.k_shear),
+                                          solver.friction_velocity)
             self.contact.check_initial(model.mesh.positions)
 
     def potential(self, x, base, inertia_target, h_eff):
@@ -207,16 +206,9 @@ class NewtonIntegrator(Integrator):
         moving = model.moving_pinned
         goal = model.pin_goal(state.time + h) if len(moving) else None  # end-of-step positions
         if contact is not None:
-            contact.begin(x_n, v_n, state.time, moving, goal)
-        kind = model.kind.copy()
+            contact.begin(state, moving, goal, base, h_eff)
+        kind = model.kind
         constrained = model.has_pins
-        contacts = self.contacts and model.has_colliders
-        if contacts:
-            predicted = target + (h_eff * h_eff) * model.gravity
-            held = contact_constraints(x, predicted, kind, state.released, model.spheres,
-                                       model.planes, model.collision_margin, self._normal, dx,
-                                       self._contact)
-            constrained = constrained or held > 0
         constraints = ConstraintFilter(kind, self._normal, constrained)
         inertia = model.mass / (h_eff * h_eff)
         tol = solver.newton_tolerance
@@ -227,7 +219,10 @@ class NewtonIntegrator(Integrator):
         if damped and not from_x_n:
             self.elastic.assemble(x_n, self._grad, values)
             self._freeze_damping(values, model.damping / h_eff, x - base)
-        for it in range(solver.newton_iterations):
+        # moving pins and colliders still short of their goal get as many Newton steps again
+        for it in range(2 * solver.newton_iterations):
+            if it >= solver.newton_iterations and self._behind(x, moving, goal) <= REACHED:
+                break
             elastic = self.elastic.assemble(x, self._grad, values)
             if damped:
                 if it == 0 and from_x_n:
@@ -249,13 +244,17 @@ class NewtonIntegrator(Integrator):
             # with this step (see the module docstring)
             prescribed = self._behind(x, moving, goal) > REACHED
             rhs = -grad
+            if it > 0 and float(np.sum(rhs * dx)) < 0.0:
+                # the rest of the last step climbs the new potential (after a re-lag of the
+                # friction, say): a loose PCG from it could stop on an ascent direction
+                dx[:] = 0.0
             if prescribed and goal is not None:
                 dx[moving] = goal - x[moving]
             if prescribed and contact is not None:
                 contact.add_collider_coupling(rhs)
             cg_its, res = filtered_pcg(matrix, rhs, dx, constraints, forcing,
                                        solver.max_iterations, self.preconditioner,
-                                       contact.operator if contact is not None else NO_OPERATOR)
+                                       contact.operator if contact is not None else NO_PAIRS)
             report.newton_iterations += 1
             report.cg_iterations += cg_its
             report.residual = max(report.residual, res)
@@ -280,10 +279,12 @@ class NewtonIntegrator(Integrator):
             # converged when a full Newton step is small, in velocity and in its decrement
             # Δxᵀ H Δx = −∇E·Δx; a step the line search shortened is small because the model
             # was poor there, not because x is near the minimum
-            if step == 0.0 or (step == 1.0 and moved <= tol
-                               and -float(np.sum(grad * dx)) <= tol * tol * self._free_mass):
-                if self._behind(x, moving, goal) <= REACHED:
-                    break
+            converged = step == 0.0 or (step == 1.0 and moved <= tol and -float(
+                np.sum(grad * dx)) <= tol * tol * self._free_mass)
+            # converged: done unless re-lagging the friction pairs changes their force
+            if (converged and self._behind(x, moving, goal) <= REACHED
+                    and (contact is None or contact.relag(x) <= tol)):
+                break
         behind = self._behind(x, moving, goal)
         if behind > REACHED:
             raise NumericalError(
@@ -294,11 +295,9 @@ class NewtonIntegrator(Integrator):
         state.x = x
         state.time += h
         if contact is not None:
-            contact.finish(state, h_eff)
+            contact.finish(x)
             report.contacts, report.min_separation = contact.contacts, contact.min_separation
-        if contacts:
-            self._contact_response(state, -grad, dx, h_eff)
-        elif model.has_colliders:
+        if model.has_colliders:
             resolve_collisions(state.x, state.v, model.free, model.spheres, model.planes,
                                model.collision_margin)
         return report
@@ -311,14 +310,3 @@ class NewtonIntegrator(Integrator):
         if self.contact is not None:
             worst = max(worst, self.contact.colliders_behind())
         return worst
-
-    def _contact_response(self, state, b, dx, h_eff):
-        """Friction from the constraint forces, release of pulling contacts, projection."""
-        model = self.model
-        force = self.matrix.residual(b, dx, self._tmp)
-        apply_friction(state.v, model.mass, h_eff, self._contact, force, self._normal,
-                       model.friction)
-        held = self._contact >= 0
-        state.released = held & (np.einsum("ij,ij->i", force, self._normal) < 0.0)
-        resolve_collisions(state.x, state.v, model.free, model.spheres, model.planes,
-                           model.collision_margin)

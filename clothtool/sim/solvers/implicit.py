@@ -2,8 +2,8 @@
 
 The incremental potential of :mod:`clothtool.sim.newton` with the finite-element
 energy of :mod:`clothtool.sim.energy` (Kim 2020 membrane, dihedral or quadratic
-bending), collider contacts as constraints of the solve with Coulomb friction, and
-the ``solver.preconditioner`` of the PCG (multigrid by default).
+bending), barrier contact with friction for every collider and self-collision
+(:mod:`clothtool.sim.contact`), and the ``solver.preconditioner`` of the PCG (multigrid by default).
 """
 
 from clothtool.sim.energy import FemElastic
@@ -12,5 +12,4 @@ from clothtool.sim.newton import NewtonIntegrator
 
 class ImplicitEuler(NewtonIntegrator):
     energy_class = FemElastic
-    contacts = True
     multigrid = True

@@ -1,0 +1,204 @@
+"""Smoothed Coulomb friction as a dissipative potential (Li et al. 2020, "Incremental
+Potential Contact", §5).
+
+Each contact pair k of the lag (the barrier's active pairs at the lag positions) keeps
+its normal force λ_k (the barrier's −∂E/∂d, N), an orthonormal tangent basis T_k (3×2,
+⟂ its normal), its closest-point weights w_k on its cloth vertices (0 on collider
+vertices) and c_k, the collider's own surface velocity weighted the same way (0 for
+cloth–cloth pairs). At cloth positions x the pair's tangential relative velocity at the
+end of the step is
+
+    v_k(x) = T_kᵀ (Σ_j w_kj (x_j − b_j)/ĥ + c_k),
+
+b and ĥ the integrator's base and velocity step (backward Euler: x_n and h; BDF2:
+(4x_n − x_{n−1})/3 and 2h/3, so that v is the integrator's own velocity). Friction adds
+
+    D(x) = Σ_k μ_k λ_k ĥ F0(‖v_k‖),    F0'(v) = f1(v/ε_v),  f1(s) = 2s − s² (s < 1), 1 beyond,
+
+F0(v) = ε_v (s² − s³/3) for s = v/ε_v < 1 and v − ε_v/3 beyond, to the incremental
+potential. Its force −∇_{x_j} D = −μλ f1(s) w_j T v̂ is Coulomb's μλ against the slip
+above ε_v and a stiff viscous hold below it: a sheet on an incline creeps at most at
+ε_v where Coulomb's law says it sticks. The Hessian per pair is w wᵀ ⊗ B with
+
+    B = (μλ/ĥ) T [F0''(v) v̂v̂ᵀ + F0'(v)/v (I − v̂v̂ᵀ)] Tᵀ,  F0'' = (2 − 2s)/ε_v, F0'/v = (2 − s)/ε_v
+    (s < 1), F0'' = 0, F0'/v = 1/v beyond,
+
+positive semi-definite as it stands (IPC's f1 is built for that), and 2μλ/(ĥε_v) T Tᵀ at
+v = 0. λ, T, w and c are lagged: the Newton loop re-lags them at its solution until the
+friction force they give stops changing (:mod:`clothtool.sim.contact`).
+"""
+
+import numpy as np
+from numba import njit
+
+
+@njit(cache=True)
+def f0(v, eps_v):
+    """F0(v) = ∫₀^v f1(u/ε_v) du."""
+    s = v / eps_v
+    if s < 1.0:
+        return eps_v * (s * s - s * s * s / 3.0)
+    return v - eps_v / 3.0
+
+
+@njit(cache=True)
+def f1(v, eps_v):
+    """f1(v/ε_v) = F0'(v): 2s − s² below ε_v, 1 beyond."""
+    s = v / eps_v
+    if s < 1.0:
+        return s * (2.0 - s)
+    return 1.0
+
+
+@njit(cache=True)
+def tangent_basis(n):
+    """(3, 2) orthonormal columns ⟂ the unit vector n: the first along n × (the axis least
+    aligned with n), the second n × the first."""
+    a0, a1, a2 = abs(n[0]), abs(n[1]), abs(n[2])
+    e = np.zeros(3)
+    if a0 <= a1 and a0 <= a2:
+        e[0] = 1.0
+    elif a1 <= a2:
+        e[1] = 1.0
+    else:
+        e[2] = 1.0
+    t0 = np.array([n[1] * e[2] - n[2] * e[1], n[2] * e[0] - n[0] * e[2], n[0] * e[1] - n[1] * e[0]])
+    t0 /= np.sqrt(t0[0] ** 2 + t0[1] ** 2 + t0[2] ** 2)
+    t1 = np.array([n[1] * t0[2] - n[2] * t0[1], n[2] * t0[0] - n[0] * t0[2], n[0] * t0[1] - n[1] * t0[0]])
+    out = np.empty((3, 2))
+    for i in range(3):
+        out[i, 0] = t0[i]
+        out[i, 1] = t1[i]
+    return out
+
+
+@njit(cache=True)
+def _slip(x, base, inv_h, row, w, basis, c, n):
+    """v = Tᵀ(Σ_j w_j (x_j − b_j)/ĥ + c) of one pair (cloth vertices j < n only)."""
+    r0, r1, r2 = c[0], c[1], c[2]
+    for j in range(4):
+        v = row[j]
+        if v < n and w[j] != 0.0:
+            r0 += w[j] * (x[v, 0] - base[v, 0]) * inv_h
+            r1 += w[j] * (x[v, 1] - base[v, 1]) * inv_h
+            r2 += w[j] * (x[v, 2] - base[v, 2]) * inv_h
+    return (basis[0, 0] * r0 + basis[1, 0] * r1 + basis[2, 0] * r2,
+            basis[0, 1] * r0 + basis[1, 1] * r1 + basis[2, 1] * r2)
+
+
+@njit(cache=True)
+def friction_energy(x, base, h_eff, eps_v, rows, weights, bases, mu_lambda, c, count, n):
+    """D(x) = Σ_k μλ ĥ F0(‖v_k‖) over the first ``count`` lagged pairs (x, base: (≥ n, 3))."""
+    total = 0.0
+    inv_h = 1.0 / h_eff
+    for k in range(count):
+        a, b = _slip(x, base, inv_h, rows[k], weights[k], bases[k], c[k], n)
+        total += mu_lambda[k] * h_eff * f0(np.sqrt(a * a + b * b), eps_v)
+    return total
+
+
+@njit(cache=True)
+def friction_assemble(x, base, h_eff, eps_v, rows, weights, bases, mu_lambda, c, count, n,
+                      grad, blocks):
+    """D(x); adds ∇D into grad (≥ n, 3) and writes each pair's Hessian block B (3×3, see
+    the module) into blocks[k], so that its Hessian is w_k w_kᵀ ⊗ B on its cloth vertices."""
+    total = 0.0
+    inv_h = 1.0 / h_eff
+    for k in range(count):
+        basis = bases[k]
+        a, b = _slip(x, base, inv_h, rows[k], weights[k], basis, c[k], n)
+        v = np.sqrt(a * a + b * b)
+        ml = mu_lambda[k]
+        total += ml * h_eff * f0(v, eps_v)
+        s = v / eps_v
+        if s < 1.0:
+            along = (2.0 - 2.0 * s) / eps_v  # F0''(v)
+            across = (2.0 - s) / eps_v  # F0'(v)/v
+        else:
+            along = 0.0
+            across = 1.0 / v
+        # force along T v̂ with magnitude μλ f1; f1(s)/v·(a, b) = F0'(v)/v·(a, b)
+        g0 = ml * across * a
+        g1 = ml * across * b
+        t0 = basis[0, 0] * g0 + basis[0, 1] * g1
+        t1 = basis[1, 0] * g0 + basis[1, 1] * g1
+        t2 = basis[2, 0] * g0 + basis[2, 1] * g1
+        row = rows[k]
+        for j in range(4):
+            vj = row[j]
+            wj = weights[k, j]
+            if vj < n and wj != 0.0:
+                grad[vj, 0] += wj * t0
+                grad[vj, 1] += wj * t1
+                grad[vj, 2] += wj * t2
+        # 2×2 H2 = along v̂v̂ᵀ + across (I − v̂v̂ᵀ), then B = (μλ/ĥ) T H2 Tᵀ
+        if v > 0.0:
+            ua, ub = a / v, b / v
+        else:
+            ua, ub = 1.0, 0.0
+        h00 = along * ua * ua + across * (1.0 - ua * ua)
+        h01 = (along - across) * ua * ub
+        h11 = along * ub * ub + across * (1.0 - ub * ub)
+        scale = ml * inv_h
+        for p in range(3):
+            tp0 = basis[p, 0] * h00 + basis[p, 1] * h01
+            tp1 = basis[p, 0] * h01 + basis[p, 1] * h11
+            for q in range(3):
+                blocks[k, p, q] = scale * (tp0 * basis[q, 0] + tp1 * basis[q, 1])
+    return total
+
+
+@njit(cache=True)
+def friction_lag(y, stencils, active, n_active, weights, normals, force, obstacle, mu, mu_self,
+                 velocity, field, rigid, n, rows, w_out, bases, mu_lambda, c):
+    """The lagged friction pairs of the barrier's active pairs at positions y (as
+    ``contact_assemble`` leaves them): for each with μ > 0 and a normal force, its stencil,
+    its weights on the cloth vertices (< n), its tangent basis, μλ, and c = Σ_j w_j u_j over
+    its collider vertices of their surface velocity u_j. A rigidly moving collider's u is its
+    velocity field ``field`` (centre, angular velocity, translation velocity: u(q) =
+    v + ω × (q − centre)) at the cloth side's closest point q, which is exact for spheres,
+    capsules and planes turning under the cloth; an animated mesh's (``rigid`` False) is
+    its vertex velocity ``velocity``. The pair's μ is its collider's (``mu`` per vertex) or
+    ``mu_self`` for cloth–cloth. Returns the number of pairs written."""
+    count = 0
+    for a in range(n_active):
+        st = stencils[active[a]]
+        m = mu_self
+        for j in range(4):
+            if obstacle[st[j]]:
+                m = mu[st[j]]
+        if m == 0.0 or force[a] <= 0.0:
+            continue
+        q = np.zeros(3)  # the cloth side's closest point: Σ w_j x_j / Σ w_j over its vertices
+        side = 0.0
+        for j in range(4):
+            if st[j] < n:
+                side += weights[a, j]
+                for i in range(3):
+                    q[i] += weights[a, j] * y[st[j], i]
+        if side != 0.0:
+            q /= side
+        for i in range(3):
+            c[count, i] = 0.0
+        for j in range(4):
+            v = st[j]
+            rows[count, j] = v
+            if v < n:
+                w_out[count, j] = weights[a, j]
+                continue
+            w_out[count, j] = 0.0
+            if rigid[v]:
+                f = field[v]
+                r0, r1, r2 = q[0] - f[0], q[1] - f[1], q[2] - f[2]
+                u0 = f[6] + f[4] * r2 - f[5] * r1
+                u1 = f[7] + f[5] * r0 - f[3] * r2
+                u2 = f[8] + f[3] * r1 - f[4] * r0
+            else:
+                u0, u1, u2 = velocity[v, 0], velocity[v, 1], velocity[v, 2]
+            c[count, 0] += weights[a, j] * u0
+            c[count, 1] += weights[a, j] * u1
+            c[count, 2] += weights[a, j] * u2
+        bases[count] = tangent_basis(normals[a])
+        mu_lambda[count] = m * force[a]
+        count += 1
+    return count
