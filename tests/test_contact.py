@@ -8,17 +8,19 @@ import ipctk
 import numpy as np
 import pytest
 
-from clothtool.contact.barrier import (barrier, barrier_first, barrier_second, contact_assemble,
-                                       contact_energy, gauss_newton_add_diagonal,
-                                       gauss_newton_coupling, gauss_newton_offdiagonal_multiply,
-                                       mollifier, solve_operator)
-from clothtool.contact.broadphase import contact_stencils, mesh_edges
+from clothtool.contact.barrier import (EDGE_EDGE, POINT_PLANE, POINT_TRIANGLE, barrier,
+                                       barrier_blocks, barrier_first, barrier_second,
+                                       contact_assemble, contact_energy, mollifier, pair_geometry)
+from clothtool.contact.broadphase import contact_stencils as _contact_stencils
+from clothtool.contact.broadphase import mesh_edges
 from clothtool.contact.ccd import additive_ccd, collision_free_step
 from clothtool.contact.distance import edge_edge_weights, point_triangle_weights
 from clothtool.contact.intersect import (NO, UNSURE, YES, exact_segment_triangle,
                                          has_intersections, intersecting_pairs, orient3d,
                                          segment_triangle)
 from clothtool.contact.shapes import rolled_sheet
+from clothtool.sim.pairs import (pair_operator, pairs_add_diagonal, pairs_coupling,
+                                 pairs_offdiagonal_multiply)
 
 FD_STEP = 1e-7
 
@@ -36,6 +38,34 @@ def central_difference(fun, x):
 
 def random_pair(rng, scale=1.0):
     return rng.normal(size=(4, 3)) * scale
+
+
+def contact_stencils(x, dx, rho, faces, edges, obstacle, self_contact, r):
+    """The candidate stencils (K, 5) of triangle meshes (every vertex a point, no planes,
+    no radii)."""
+    n = len(x)
+    return _contact_stencils(x, dx, rho, np.arange(n), np.asarray(faces, np.int64),
+                             np.asarray(edges, np.int64), np.zeros((0, 2), np.int64), n, obstacle,
+                             np.zeros(n), self_contact, r)
+
+
+def geometry(x, xi, dhat, obstacle=None, rest=None, xi_obstacle=None, dhat_obstacle=None):
+    """The kernels' pair geometry of meshes without radii (collider wall and activation
+    default to the cloth's)."""
+    n = len(x)
+    return pair_geometry(np.zeros(n, bool) if obstacle is None else obstacle, np.zeros(n),
+                         x if rest is None else rest, xi, xi if xi_obstacle is None else xi_obstacle,
+                         dhat, dhat if dhat_obstacle is None else dhat_obstacle)
+
+
+def dense_operator(rows, weights, blocks, count, n_vertices):
+    """H = Σ_k (w_k w_kᵀ) ⊗ B_k of pair-operator entries, dense (3N × 3N)."""
+    h = np.zeros((n_vertices, 3, n_vertices, 3))
+    for k in range(count):
+        for i in range(4):
+            for j in range(4):
+                h[rows[k, i], :, rows[k, j], :] += weights[k, i] * weights[k, j] * blocks[k]
+    return h.reshape(3 * n_vertices, 3 * n_vertices)
 
 
 # ---------------------------------------------------------------- distances
@@ -113,15 +143,23 @@ def two_elements(rng, kind, gap):
     return x @ q.T, faces, edges
 
 
-def assemble(x, stencils, n_pt, rest, xi, dhat, kappa):
+def assemble(x, stencils, geo, kappa):
+    """contact_assemble with fresh arrays: (energy, grad, pair data, smallest gap)."""
     k = len(stencils)
     grad = np.zeros_like(x)
     act, w, nrm, coef = np.zeros(k, np.int64), np.zeros((k, 4)), np.zeros((k, 3)), np.zeros(k)
-    obstacle = np.zeros(len(x), bool)
-    force = np.zeros(k)
-    e, n_act, gap = contact_assemble(x, stencils, n_pt, obstacle, rest, xi, xi, dhat, kappa,
-                                     grad, act, w, nrm, coef, force)
-    return e, grad, (act, n_act, w, nrm, coef, force), gap
+    force, tilt = np.zeros(k), np.zeros((k, 2, 4))
+    e, n_act, gap = contact_assemble(x, stencils, geo, kappa, grad, act, w, nrm, coef, force, tilt)
+    return e, grad, (act, n_act, w, nrm, coef, force, tilt), gap
+
+
+def hessian_entries(x, stencils, pairs):
+    """The pair-operator entries (rows, weights, blocks, count) of assembled pair data."""
+    act, n_act, w, nrm, coef, force, tilt = pairs
+    room = 3 * max(n_act, 1)
+    rows, w_out, blocks = np.zeros((room, 4), np.int64), np.zeros((room, 4)), np.zeros((room, 3, 3))
+    count = barrier_blocks(stencils, act, n_act, w, nrm, coef, force, tilt, x, rows, w_out, blocks)
+    return rows, w_out, blocks, count
 
 
 @pytest.mark.parametrize("kind", ["pt", "ee"])
@@ -131,17 +169,18 @@ def test_barrier_energy_and_gradient_match_ipctk_and_finite_differences(kind, se
     dhat, kappa = 0.05, 3.0
     x, faces, edges = two_elements(rng, kind, 0.02)
     obstacle = np.zeros(4, bool)
-    stencils, n_pt = contact_stencils(x, np.zeros_like(x), np.zeros(len(x)), faces, edges, obstacle, True, dhat)
-    assert len(stencils) == 1 and n_pt == (1 if kind == "pt" else 0)
-    e, grad, _, _ = assemble(x, stencils, n_pt, x, 0.0, dhat, kappa)
+    stencils = contact_stencils(x, np.zeros_like(x), np.zeros(len(x)), faces, edges, obstacle, True, dhat)
+    assert len(stencils) == 1 and stencils[0, 4] == (POINT_TRIANGLE if kind == "pt" else EDGE_EDGE)
+    geo = geometry(x, 0.0, dhat)
+    e, grad, _, _ = assemble(x, stencils, geo, kappa)
     mesh = ipctk.CollisionMesh(x, edges, faces)
     collisions = ipctk.NormalCollisions()
     collisions.build(mesh, x, dhat)
-    potential = ipctk.BarrierPotential(ipctk.NormalizedClampedLogBarrier(), dhat, kappa)
+    # ours is κ d̂² B(d²/d̂²), ipctk's normalised barrier with stiffness κ' is κ' B(d²/d̂²)
+    potential = ipctk.BarrierPotential(ipctk.NormalizedClampedLogBarrier(), dhat, kappa * dhat**2)
     assert e > 0 and e == pytest.approx(potential(collisions, mesh, x), rel=1e-9)
-    assert np.allclose(grad.ravel(), potential.gradient(collisions, mesh, x), rtol=1e-7, atol=1e-9)
-    fd = central_difference(lambda y: contact_energy(y.reshape(-1, 3), stencils, n_pt, obstacle, x,
-                                                     0.0, 0.0, dhat, kappa), x.ravel())
+    assert np.allclose(grad.ravel(), potential.gradient(collisions, mesh, x), rtol=1e-7, atol=1e-12)
+    fd = central_difference(lambda y: contact_energy(y.reshape(-1, 3), stencils, geo, kappa), x.ravel())
     assert np.allclose(grad.ravel(), fd, rtol=1e-5, atol=1e-6 * np.abs(fd).max())
 
 
@@ -150,13 +189,12 @@ def test_mollified_edge_edge_gradient_matches_finite_differences():
     x = np.array([[-0.5, 0, 0], [0.5, 0, 0], [-0.5, 0.003, 0.01], [0.5, -0.002, 0.012]])
     rest = x.copy()
     rest[3] = [0.5, 0.3, 0.01]  # ε from the rest shape is large: the pair is mollified
-    stencils, n_pt = np.array([[0, 1, 2, 3]]), 0
-    obstacle = np.zeros(4, bool)
-    e, grad, _, _ = assemble(x, stencils, n_pt, rest, 0.001, 0.05, 2.0)
-    unmollified = contact_energy(x, stencils, 4, obstacle, rest, 0.001, 0.001, 0.05, 2.0)
-    assert 0 < e < 0.5 * unmollified  # counted as vertex–triangle: no mollifier
-    fd = central_difference(lambda y: contact_energy(y.reshape(-1, 3), stencils, n_pt, obstacle,
-                                                     rest, 0.001, 0.001, 0.05, 2.0), x.ravel())
+    stencils = np.array([[0, 1, 2, 3, EDGE_EDGE]])
+    geo = geometry(x, 0.001, 0.05, rest=rest)
+    e, grad, _, _ = assemble(x, stencils, geo, 2.0)
+    unmollified = contact_energy(x, stencils, geometry(x, 0.001, 0.05, rest=0.01 * x), 2.0)  # ε ≪ c
+    assert 0 < e < 0.5 * unmollified
+    fd = central_difference(lambda y: contact_energy(y.reshape(-1, 3), stencils, geo, 2.0), x.ravel())
     assert np.allclose(grad.ravel(), fd, rtol=1e-5, atol=1e-6 * np.abs(fd).max())
 
 
@@ -164,13 +202,17 @@ def test_mollified_edge_edge_gradient_matches_finite_differences():
 def test_gauss_newton_hessian_is_exact_along_the_normal_of_a_vertex_over_a_face(xi):
     """A vertex over a fixed triangle: d is linear in p, so H_pp = κ g''(d) n nᵀ exactly."""
     x = np.array([[0.3, 0.2, 0.01], [0, 0, 0], [1, 0, 0], [0, 1, 0]], float)
-    stencils, dhat, kappa = np.array([[0, 1, 2, 3]]), 0.02, 1.5
-    _, grad, (act, n_act, w, nrm, coef, force), gap = assemble(x, stencils, 1, x, xi, dhat, kappa)
+    stencils, dhat, kappa = np.array([[0, 1, 2, 3, POINT_TRIANGLE]]), 0.02, 1.5
+    geo = geometry(x, xi, dhat)
+    _, grad, pairs, gap = assemble(x, stencils, geo, kappa)
+    act, n_act, w, nrm, coef, force, tilt = pairs
     assert n_act == 1 and gap == pytest.approx(0.01)
     assert force[0] > 0 and np.allclose(grad[0], -force[0] * nrm[0])  # pushes p along +n
-    hess = dense_hessian(stencils, act, n_act, w, nrm, coef, 4)
-    fd = central_difference(lambda p: assemble(np.vstack([p, x[1:]]), stencils, 1, x, xi, dhat,
-                                               kappa)[1][0], x[0])
+    assert not tilt.any()  # no radius: no tilt terms
+    rows, w_out, blocks, count = hessian_entries(x, stencils, pairs)
+    assert count == 1
+    hess = dense_operator(rows, w_out, blocks, count, 4)
+    fd = central_difference(lambda p: assemble(np.vstack([p, x[1:]]), stencils, geo, kappa)[1][0], x[0])
     assert np.allclose(hess[:3, :3], fd, rtol=1e-5, atol=1e-6 * np.abs(fd).max())
     assert np.allclose(hess, hess.T) and np.linalg.eigvalsh(hess).min() > -1e-9 * np.abs(hess).max()
 
@@ -187,7 +229,7 @@ def dense_hessian(stencils, active, n_active, weights, normals, coef, n_vertices
     return h.reshape(3 * n_vertices, 3 * n_vertices)
 
 
-def test_solve_operators_split_the_gauss_newton_hessian():
+def test_pair_operators_split_the_gauss_newton_hessian():
     """diagonal blocks + off-diagonal product = H on the unknowns (vertices < n); the
     coupling is H between unknowns and held vertices."""
     rng = np.random.default_rng(4)
@@ -195,25 +237,25 @@ def test_solve_operators_split_the_gauss_newton_hessian():
     x = np.vstack([x, plate_under(x)])
     faces = np.vstack([faces, [[64, 65, 66]]])
     obstacle = np.arange(67) >= 64
-    stencils, n_pt = contact_stencils(x, np.zeros_like(x), np.zeros(67), faces, mesh_edges(faces),
-                                      obstacle, True, 0.05)
-    k = len(stencils)
-    act, w, nrm, coef, force = (np.zeros(k, np.int64), np.zeros((k, 4)), np.zeros((k, 3)),
-                                np.zeros(k), np.zeros(k))
-    _, n_act, _ = contact_assemble(x, stencils, n_pt, obstacle, x, 0.001, 0.001, 0.05, 1.0,
-                                   np.zeros_like(x), act, w, nrm, coef, force)
-    assert n_act > 10 and any(obstacle[stencils[a]].any() for a in act[:n_act])
+    stencils = contact_stencils(x, np.zeros_like(x), np.zeros(67), faces, mesh_edges(faces),
+                                obstacle, True, 0.05)
+    _, _, pairs, _ = assemble(x, stencils, geometry(x, 0.001, 0.05, obstacle), 1.0)
+    act, n_act, w, nrm, coef = pairs[:5]
+    assert n_act > 10 and any(obstacle[stencils[a, :4]].any() for a in act[:n_act])
     h = dense_hessian(stencils, act, n_act, w, nrm, coef, 67)
+    rows, w_out, entries, count = hessian_entries(x, stencils, pairs)
+    assert count == n_act  # no radii: one Gauss–Newton entry per pair
+    assert np.allclose(dense_operator(rows, w_out, entries, count, 67), h)
     v = rng.normal(size=x.shape)
-    op = solve_operator(stencils, act, n_act, w, nrm, coef, 64)
+    op = pair_operator(rows, w_out, entries, count, 64)
     blocks = np.zeros((64, 3, 3))
-    gauss_newton_add_diagonal(op, np.arange(64), blocks)
+    pairs_add_diagonal(op, np.arange(64), blocks)
     split = np.einsum("vij,vj->vi", blocks, v[:64])
     split = np.vstack([split, np.zeros((3, 3))])
-    gauss_newton_offdiagonal_multiply(op, v, split, 1.0)
+    pairs_offdiagonal_multiply(op, v, split, 1.0)
     assert np.allclose(split[:64].ravel(), h[:192, :192] @ v[:64].ravel())
     out = np.zeros_like(x)
-    gauss_newton_coupling(op, v, out, 2.0)
+    pairs_coupling(op, v, out, 2.0)
     coupled = h[:192, 192:] @ v[64:].ravel()
     assert np.allclose(out[:64].ravel(), 2.0 * coupled) and np.abs(coupled).max() > 0
 
@@ -226,12 +268,15 @@ def plate_under(x):
 
 def test_energy_is_infinite_inside_the_thickness_and_zero_beyond_activation():
     x = np.array([[0.3, 0.2, 0.01], [0, 0, 0], [1, 0, 0], [0, 1, 0]], float)
-    st, obstacle = np.array([[0, 1, 2, 3]]), np.zeros(4, bool)
-    assert contact_energy(x, st, 1, obstacle, x, 0.0, 0.0, 0.01, 1.0) == 0.0
-    assert contact_energy(x, st, 1, obstacle, x, 0.0, 0.0, 0.0101, 1.0) > 0.0
-    assert contact_energy(x, st, 1, obstacle, x, 0.01, 0.01, 0.01, 1.0) == np.inf
-    # the collider margin applies when a collider vertex takes part
-    assert contact_energy(x, st, 1, np.array([0, 1, 1, 1], bool), x, 0.0, 0.02, 0.01, 1.0) == np.inf
+    st = np.array([[0, 1, 2, 3, POINT_TRIANGLE]])
+    assert contact_energy(x, st, geometry(x, 0.0, 0.01), 1.0) == 0.0
+    assert contact_energy(x, st, geometry(x, 0.0, 0.0101), 1.0) > 0.0
+    assert contact_energy(x, st, geometry(x, 0.01, 0.01), 1.0) == np.inf
+    # the collider's wall and activation apply when a collider vertex takes part
+    collider = np.array([0, 1, 1, 1], bool)
+    assert contact_energy(x, st, geometry(x, 0.0, 0.01, collider, xi_obstacle=0.02), 1.0) == np.inf
+    assert contact_energy(x, st, geometry(x, 0.0, 0.02, collider, dhat_obstacle=0.005), 1.0) == 0.0
+    assert contact_energy(x, st, geometry(x, 0.0, 0.005, collider, dhat_obstacle=0.02), 1.0) > 0.0
 
 
 # ---------------------------------------------------------------- CCD
@@ -242,25 +287,25 @@ def test_ccd_head_on_stops_short_of_the_thickness():
     dx = np.zeros((4, 3))
     dx[0, 2] = -2.0  # reaches the plane at t = 0.5, the thickness 0.1 at t = 0.45
     for xi, impact in [(0.0, 0.5), (0.1, 0.45)]:
-        t = additive_ccd(x, dx, False, xi, 0.9, 1.0)
+        t = additive_ccd(x, dx, POINT_TRIANGLE, xi, 0.9, 1.0)
         assert 0.8 * impact < t < impact
     # an edge flying into another one
     x = np.array([[-1, 0, 0], [1, 0, 0], [0, -1, 1.0], [0, 1, 1.0]], float)
     dx = np.zeros((4, 3))
     dx[2:, 2] = -4.0  # impact at t = 0.25
-    assert 0.8 * 0.25 < additive_ccd(x, dx, True, 0.0, 0.9, 1.0) < 0.25
+    assert 0.8 * 0.25 < additive_ccd(x, dx, EDGE_EDGE, 0.0, 0.9, 1.0) < 0.25
 
 
 def test_ccd_grazing_and_receding_motions_are_free():
     x = np.array([[0.3, 0.3, 0.02], [0, 0, 0], [1, 0, 0], [0, 1, 0]])
     dx = np.zeros((4, 3))
     dx[0] = [0.5, 0.1, 0.0]  # slides past at height 0.02 over the face and beyond its edge
-    assert additive_ccd(x, dx, False, 0.01, 0.9, 1.0) == 1.0
+    assert additive_ccd(x, dx, POINT_TRIANGLE, 0.01, 0.9, 1.0) == 1.0
     dx[0] = [0.0, 0.0, 1.0]
-    assert additive_ccd(x, dx, False, 0.01, 0.9, 1.0) == 1.0
+    assert additive_ccd(x, dx, POINT_TRIANGLE, 0.01, 0.9, 1.0) == 1.0
     dx[0] = [1.0, 1.0, -0.01]  # over the hypotenuse and away, never closer than 0.01
-    assert additive_ccd(x, dx, False, 0.0, 0.9, 1.0) == 1.0
-    assert additive_ccd(x, np.zeros((4, 3)), False, 0.0, 0.9, 1.0) == 1.0
+    assert additive_ccd(x, dx, POINT_TRIANGLE, 0.0, 0.9, 1.0) == 1.0
+    assert additive_ccd(x, np.zeros((4, 3)), POINT_TRIANGLE, 0.0, 0.9, 1.0) == 1.0
 
 
 def sheet_motion(seed):
@@ -277,8 +322,8 @@ def test_ccd_step_is_free_of_intersections_and_close_to_ipctk(seed):
     edges = mesh_edges(faces)
     obstacle = np.zeros(len(x0), bool)
     assert has_intersections(x0 + dx, faces)  # the full step crosses layers
-    stencils, n_pt = contact_stencils(x0, dx, np.zeros(len(x0)), faces, edges, obstacle, True, 0.0)
-    t = collision_free_step(x0, dx, stencils, n_pt, obstacle, 0.0, 0.0, 1.0)
+    stencils = contact_stencils(x0, dx, np.zeros(len(x0)), faces, edges, obstacle, True, 0.0)
+    t = collision_free_step(x0, dx, stencils, geometry(x0, 0.0, 0.0), 1.0)
     mesh = ipctk.CollisionMesh(x0, edges, faces)
     t_ipc = ipctk.compute_collision_free_stepsize(mesh, x0, x0 + dx)
     assert 0.5 * t_ipc < t < 1.0
@@ -290,13 +335,13 @@ def test_ccd_step_is_free_of_intersections_and_close_to_ipctk(seed):
 def test_ccd_with_thickness_keeps_every_pair_apart(seed):
     x0, dx, faces = sheet_motion(seed)
     edges, obstacle, xi = mesh_edges(faces), np.zeros(len(x0), bool), 0.002
-    stencils, n_pt = contact_stencils(x0, dx, np.zeros(len(x0)), faces, edges, obstacle, True, xi)
-    t = collision_free_step(x0, dx, stencils, n_pt, obstacle, xi, xi, 1.0)
+    stencils = contact_stencils(x0, dx, np.zeros(len(x0)), faces, edges, obstacle, True, xi)
+    t = collision_free_step(x0, dx, stencils, geometry(x0, xi, 0.0), 1.0)
     assert 0.0 < t < 1.0
     # every pair (brute force over all pairs within reach) stays farther than xi
-    allst, n_all = contact_stencils(x0, dx, np.zeros(len(x0)), faces, edges, obstacle, True, 10.0)
+    allst = contact_stencils(x0, dx, np.zeros(len(x0)), faces, edges, obstacle, True, 10.0)
     for s in np.linspace(0.0, t, 20):
-        assert assemble(x0 + s * dx, allst, n_all, x0, xi, 1e-9, 1.0)[3] > xi
+        assert assemble(x0 + s * dx, allst, geometry(x0, xi, 1e-9), 1.0)[3] > xi
 
 
 # ---------------------------------------------------------------- broad phase
@@ -311,13 +356,13 @@ def brute_force_pairs(x, faces, edges, obstacle, self_contact, r):
             if v in f or (obstacle[v] and obstacle[f[0]]) or not (self_contact or obstacle[v] or obstacle[f[0]]):
                 continue
             if point_triangle_weights(x, v, *f, w) < r * r:
-                found.add((False, v, *f))
+                found.add((v, *f, POINT_TRIANGLE))
     for i, a in enumerate(edges):
         for b in edges[i + 1:]:
             if set(a) & set(b) or (obstacle[a[0]] and obstacle[b[0]]) or not (self_contact or obstacle[a[0]] or obstacle[b[0]]):
                 continue
             if edge_edge_weights(x, *a, *b, w) < r * r:
-                found.add((True, *a, *b))
+                found.add((*a, *b, EDGE_EDGE))
     return found
 
 
@@ -331,14 +376,15 @@ def test_broad_phase_finds_every_pair_within_reach(self_contact):
     obstacle = np.arange(len(x)) >= 100
     for motion in (np.zeros_like(x), 0.01 * np.random.default_rng(1).normal(size=x.shape)):
         r = 0.03
-        stencils, n_pt = contact_stencils(x, motion, np.zeros(len(x)), faces, edges, obstacle, self_contact, r)
-        got = {(k >= n_pt, *s) for k, s in enumerate(stencils)}
+        stencils = contact_stencils(x, motion, np.zeros(len(x)), faces, edges, obstacle, self_contact, r)
+        got = {tuple(s) for s in stencils}
         assert len(got) == len(stencils)  # each pair once
+        assert set(stencils[:, 4]) == {POINT_TRIANGLE, EDGE_EDGE}
         for s in np.linspace(0, 1, 5):
             want = brute_force_pairs(x + s * motion, faces, edges, obstacle, self_contact, r)
             assert want <= got
-        assert any(obstacle[list(s[1:])].any() for s in got)
-        assert any(not obstacle[list(s[1:])].any() for s in got) == self_contact
+        assert any(obstacle[list(s[:4])].any() for s in got)
+        assert any(not obstacle[list(s[:4])].any() for s in got) == self_contact
 
 
 # ---------------------------------------------------------------- intersection test
@@ -406,3 +452,32 @@ def test_intersection_test_on_a_rolled_sheet_pushed_through_itself():
     assert len(pairs) > 0 and np.all(face_on_plate != edge_on_plate)
     assert not has_intersections(np.vstack([plate, plate + [0.0, 0.0, 0.1]]),
                                  np.array([[0, 1, 2], [3, 4, 5]]), np.ones(6, bool))
+
+
+def test_broad_phase_finds_every_cloth_vertex_near_a_moving_plane():
+    """Vertex–plane stencils (p, o, t, o): every cloth vertex that comes within r of the
+    plane (o, t) somewhere on the motion, none of the plane's own vertices or colliders."""
+    rng = np.random.default_rng(2)
+    n_cloth, r = 200, 0.05
+    cloth = rng.uniform(-1, 1, size=(n_cloth, 3)) * [1, 1, 0.3]
+    normal = np.array([0.2, -0.1, 1.0]) / np.linalg.norm([0.2, -0.1, 1.0])
+    o = np.array([0.1, 0.0, -0.1])
+    x = np.vstack([cloth, [o, o + normal], [[0, 0, -0.1]]])  # a collider point that is no cloth
+    faces = np.zeros((0, 3), np.int64)
+    obstacle = np.arange(len(x)) >= n_cloth
+    planes = np.array([[n_cloth, n_cloth + 1]])
+    points = np.r_[np.arange(n_cloth), n_cloth + 2]
+    dx = np.zeros_like(x)
+    dx[:n_cloth] = 0.05 * rng.normal(size=(n_cloth, 3))
+    dx[n_cloth:n_cloth + 2] = [0.0, 0.0, 0.04]  # the plane translates up
+    st = _contact_stencils(x, dx, np.zeros(len(x)), points, faces, np.zeros((0, 2), np.int64),
+                           planes, n_cloth, obstacle, np.zeros(len(x)), True, r)
+    assert np.all(st[:, 4] == POINT_PLANE) and np.all(st[:, 1:4] == [n_cloth, n_cloth + 1, n_cloth])
+    got = set(st[:, 0])
+    assert max(got) < n_cloth and len(got) == len(st)
+    want = set()
+    for s in np.linspace(0, 1, 11):
+        y = x + s * dx
+        want |= set(np.flatnonzero((y[:n_cloth] - y[n_cloth]) @ normal < r))
+    assert want <= got and len(want) > 10
+    assert len(got) < n_cloth  # vertices far above the plane are left out
