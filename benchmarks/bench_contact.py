@@ -11,8 +11,9 @@ and with two threads:
 - collision set: ours the candidate stencils over the position (grid broad phase and
   a distance filter), ipctk ``NormalCollisions.build`` (its broad phase and distance
   types, deduplicated); activation distance d̂ = 4 mm, no thickness;
-- barrier gradient and Hessian: ours the exact gradient and the Gauss–Newton pair
-  data, ipctk ``gradient`` and ``hessian`` with PSD clamping (normalised log barrier);
+- barrier gradient and Hessian: ours the exact gradient and the Hessian's pair-operator
+  entries (Gauss–Newton blocks, ``barrier_blocks``), ipctk ``gradient`` and ``hessian``
+  with PSD clamping (normalised log barrier at stiffness d̂², the same energy as ours);
 - CCD over a smooth motion that squeezes the layers together and, at the tight end,
   through each other (so the collision-free step is below 1): ours broad phase over the motion + additive CCD, ipctk
   ``compute_collision_free_stepsize`` with its default (Tight Inclusion, provably
@@ -31,7 +32,7 @@ import ipctk
 import numpy as np
 
 from benchmarks.common import markdown_table, write_csv
-from clothtool.contact.barrier import contact_assemble
+from clothtool.contact.barrier import barrier_blocks, contact_assemble, pair_geometry
 from clothtool.contact.broadphase import contact_stencils, mesh_edges
 from clothtool.contact.ccd import collision_free_step
 from clothtool.contact.intersect import has_intersections
@@ -58,27 +59,34 @@ def scene():
 
 
 def ours(x, dx, faces):
+    n = len(x)
     edges = mesh_edges(faces)
-    obstacle = np.zeros(len(x), dtype=np.bool_)
+    obstacle = np.zeros(n, dtype=np.bool_)
     zero = np.zeros_like(x)
+    points, planes, radius = np.arange(n), np.zeros((0, 2), np.int64), np.zeros(n)
+    geometry = pair_geometry(obstacle, radius, x, 0.0, 0.0, DHAT, DHAT)
 
     def collision_set():
-        return contact_stencils(x, zero, np.zeros(len(x)), faces, edges, obstacle, True, DHAT)
+        return contact_stencils(x, zero, np.zeros(n), points, faces, edges, planes, n, obstacle,
+                                radius, True, DHAT)
 
-    stencils, n_pt = collision_set()
+    stencils = collision_set()
     k = len(stencils)
     grad = np.zeros_like(x)
     act, w, nrm, coef = np.zeros(k, np.int64), np.zeros((k, 4)), np.zeros((k, 3)), np.zeros(k)
-    force = np.zeros(k)
+    force, tilt = np.zeros(k), np.zeros((k, 2, 4))
+    rows, w_out, blocks = np.zeros((3 * k, 4), np.int64), np.zeros((3 * k, 4)), np.zeros((3 * k, 3, 3))
 
     def derivatives():
         grad[:] = 0.0
-        return contact_assemble(x, stencils, n_pt, obstacle, x, 0.0, 0.0, DHAT, 1.0,
-                                grad, act, w, nrm, coef, force)
+        out = contact_assemble(x, stencils, geometry, 1.0, grad, act, w, nrm, coef, force, tilt)
+        barrier_blocks(stencils, act, out[1], w, nrm, coef, force, tilt, x, rows, w_out, blocks)
+        return out
 
     def ccd():
-        st, n = contact_stencils(x, dx, np.zeros(len(x)), faces, edges, obstacle, True, 0.0)
-        return collision_free_step(x, dx, st, n, obstacle, 0.0, 0.0, 1.0)
+        st = contact_stencils(x, dx, np.zeros(n), points, faces, edges, planes, n, obstacle,
+                              radius, True, 0.0)
+        return collision_free_step(x, dx, st, geometry, 1.0)
 
     _, n_active, _ = derivatives()
     return {"collision set": median_ms(collision_set), "gradient + Hessian": median_ms(derivatives),
@@ -89,7 +97,8 @@ def ours(x, dx, faces):
 def ipc(x, dx, faces, threads):
     ipctk.set_num_threads(threads)
     mesh = ipctk.CollisionMesh(x, mesh_edges(faces), faces)
-    potential = ipctk.BarrierPotential(ipctk.NormalizedClampedLogBarrier(), DHAT, 1.0)
+    # the same energy as ours with κ = 1: κ d̂² B(d²/d̂²)
+    potential = ipctk.BarrierPotential(ipctk.NormalizedClampedLogBarrier(), DHAT, DHAT**2)
     collisions = ipctk.NormalCollisions()
     x1 = x + dx
 
