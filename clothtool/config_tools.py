@@ -52,11 +52,20 @@ scene:
   #   - {vertices: [12, 13], translate: {velocity: [0, 0, 0.5], until: 2.0}}
   colliders:
     - sphere: {center: [0, -0.5, 0], radius: 0.3}   # each may also set friction: 0.0
-    - plane: {point: [0, -1, 0], normal: [0, 1, 0]}
-    # or triangle meshes (implicit; not together with spheres and planes), static or animated:
-    #   - mesh: {ply: body.ply, friction: 0.3}      (or obj: body.obj)
+    - plane: {point: [0, -1, 0], normal: [0, 1, 0]}  # the cloth stays on the side n points to
+    # more kinds, in any mix (implicit; the other methods project onto spheres and planes only):
+    #   - capsule: {a: [-0.3, -0.6, 0], b: [0.3, -0.6, 0], radius: 0.1}
+    #   - box: {center: [0, -0.8, 0], size: [1, 0.2, 1], axis: [0, 1, 0], angle: 0.0}
+    #   - mesh: {ply: body.ply, friction: 0.3}      (or obj: body.obj), static, or animated:
     #   - mesh: {frames: body/, fps: 30, friction: 0.3}
-  collision_margin: 1.0e-3      # m, vertices are kept this far outside every collider
+    # every collider may move rigidly (implicit), e.g. a sphere turning at 180°/s:
+    #   - sphere: {center: [0, -0.5, 0], radius: 0.3, friction: 0.4,
+    #              motion: {rotate: {center: [0, -0.5, 0], axis: [0, 1, 0], speed: 3.1416}}}
+    # (motion: {rotate: {center, axis, speed, until}, translate: {velocity, until}}, both allowed)
+  collision_margin: 1.0e-3      # m, cloth rests this far from a collider surface (implicit:
+                                # never closer than margin − activation_distance)
+  activation_distance: null     # m, depth of the contact barrier; null = half the margin
+                                # (and half the self-collision thickness)
   self_collision: null          # cloth–cloth contact (implicit), e.g. {thickness: 0.002, friction: 0.2}
 
 solver:
@@ -68,6 +77,7 @@ solver:
   preconditioner: multigrid  # multigrid (aggregation V-cycle) or jacobi (block Jacobi)
   newton_iterations: 20 # Newton steps per solver step, at most (1 = Baraff–Witkin's linearised step)
   newton_tolerance: 0.04  # m/s, Newton stops when the largest velocity correction max|Δx|/h is below
+  friction_velocity: 1.0e-4  # m/s, contact friction holds below this sliding speed (IPC's ε_v)
   line_search: true     # backtracking line search on the Newton steps
   max_speed: 1000.0     # m/s, a faster vertex counts as a blow-up (exit code 3)
   iterations: 10        # pbd, xpbd, projective, vbd: constraint sweeps / local-global iterations / vertex sweeps per step

@@ -23,6 +23,7 @@ from clothtool.io.ply import read_ply, write_ply
 from clothtool.sim.api import simulate
 from clothtool.sim.config import GridSpec, load_config
 from clothtool.sim.mesh import grid_mesh
+from clothtool.sim.model import build_model
 from clothtool.sim.motion import resolve_pin_entries
 from clothtool.sim.colliders import load_colliders
 
@@ -125,17 +126,26 @@ def test_bad_pins_are_one_line_errors(tmp_path, pins, message):
      "scene.colliders[0].mesh needs exactly one of ply, obj and frames"),
     ({"colliders": [{"mesh": {}}]}, "scene.colliders[0].mesh needs exactly one of"),
     ({"colliders": [{"mesh": {"ply": "a.ply", "fps": 30}}]}, "scene.colliders[0].mesh.fps applies to frames only"),
-    ({"colliders": [{"mesh": {"ply": "a.ply"}}, {"sphere": {}}]},
-     "scene.colliders[1].sphere: spheres and planes cannot be combined with mesh colliders"),
-    ({"colliders": [{"plane": {}}], "self_collision": {}},
-     "scene.colliders[0].plane: spheres and planes cannot be combined with scene.self_collision"),
+    ({"colliders": [{"capsule": {"a": [0, -1, 0], "b": [0, -1, 0]}}]},
+     "scene.colliders[0].capsule: a and b must differ"),
+    ({"colliders": [{"box": {"size": [1, 0, 1]}}]},
+     "scene.colliders[0].box.size: every edge length must be positive"),
+    ({"colliders": [{"sphere": {"center": [0, -2, 0], "motion": {}}}]},
+     "scene.colliders[0].sphere.motion needs rotate and/or translate"),
+    ({"colliders": [{"sphere": {"center": [0, -2, 0], "motion": {"spin": {}}}}]},
+     "unknown key 'scene.colliders[0].sphere.motion.spin'"),
+    ({"colliders": [{"cylinder": {}}]}, "scene.colliders[0]: unknown collider 'cylinder'"),
+    ({"activation_distance": 0.002, "colliders": [{"sphere": {"center": [0, -2, 0]}}]},
+     "scene.activation_distance (0.002 m) must be below scene.collision_margin"),
     ({"self_collision": {"thickness": 0}}, "scene.self_collision.thickness must be > 0"),
     ({"self_collision": {"thicknes": 0.1}}, "unknown key 'scene.self_collision.thicknes'"),
     ({"self_collision": 3}, "scene.self_collision must be a mapping"),
 ])
 def test_bad_contact_keys_are_one_line_errors(scene, message):
-    with pytest.raises(InputError, match=message.replace("[", r"\[").replace("]", r"\]")):
-        load_config({"mesh": {"grid": {}}, "scene": scene})
+    """Each is refused at load or when the model is built, naming the key."""
+    with pytest.raises(InputError, match=message.replace("[", r"\[").replace("]", r"\]")
+                       .replace("(", r"\(").replace(")", r"\)")):
+        build_model(load_config({"mesh": {"grid": {}}, "scene": scene}))
 
 
 @pytest.mark.parametrize("method", ["pbd", "xpbd", "projective", "explicit", "mass-spring"])
@@ -163,7 +173,7 @@ def test_collider_files_static_and_animated(tmp_path):
         {"mesh": {"obj": str(tmp_path / "p.obj")}},
         {"mesh": {"frames": str(tmp_path / "anim"), "fps": 10}}]}})
     cm = load_colliders(cfg.scene.colliders)
-    assert cm.n_vertices == 12 and cm.faces.max() == 11 and cm.animated
+    assert cm.n_vertices == 12 and cm.faces.max() == 11 and cm.moving
     assert list(cm.friction) == [0.3] * 4 + [0.0] * 8
     for t, dy in [(0.0, 0.0), (0.05, 0.05), (0.15, 0.15), (0.2, 0.2), (5.0, 0.2)]:
         assert np.allclose(cm.positions(t)[8:], x + [0, dy, 0]), t
@@ -223,11 +233,21 @@ def test_bad_collider_files_are_one_line_errors_writing_nothing(tmp_path, kind, 
 
 def test_cloth_starting_inside_the_margin_or_crossing_is_refused(tmp_path):
     body = write_mesh(tmp_path / "plate.ply", plate(2.0, 2.0, height=-0.0005))
-    with pytest.raises(InputError, match="within scene.collision_margin of a collider"):
+    with pytest.raises(InputError, match=r"closer to scene.colliders\[0\].mesh than half the "
+                                         "scene.collision_margin"):
         run(tmp_path, {"colliders": [{"mesh": {"ply": body}}]}, frames=1)
     body = write_mesh(tmp_path / "box.ply", box([-0.1, -0.1, -0.1], [0.1, 0.1, 0.1]))
-    with pytest.raises(InputError, match="the initial cloth crosses a collider"):
+    with pytest.raises(InputError, match=r"not intersection-free: cloth triangle \d+ crosses "
+                                         r"scene.colliders\[0\].mesh triangle \d+"):
         run(tmp_path, {"colliders": [{"mesh": {"ply": body}}]}, frames=1)
+    for shape in ({"sphere": {"center": [0, 0, 0], "radius": 0.1}},
+                  {"capsule": {"a": [-0.1, 0, 0], "b": [0.1, 0, 0], "radius": 0.05}},
+                  {"plane": {"point": [0, 0.01, 0], "normal": [0, 1, 0]}},
+                  {"box": {"size": [0.2, 0.2, 0.2]}}):
+        kind = next(iter(shape))
+        with pytest.raises(InputError, match=rf"not intersection-free: cloth (triangle|vertex) \d+ "
+                                             rf"crosses scene.colliders\[0\].{kind}"):
+            run(tmp_path, {"colliders": [shape]}, frames=1)
 
 
 # ---------------------------------------------------------------- scenes

@@ -269,8 +269,6 @@ def test_a_saved_state_resumes_the_run_exactly(method, solver):
     for _ in range(6):
         integ.step(state)
     saved = state.copy()
-    if method == "implicit":  # the scene exercises the contact memory
-        assert saved.released.any()
     for _ in range(6):
         integ.step(state)
     resumed = make_integrator(model, cfg.solver, cfg.step)
