@@ -62,7 +62,7 @@ scene:
     #   - sphere: {center: [0, -0.5, 0], radius: 0.3, friction: 0.4,
     #              motion: {rotate: {center: [0, -0.5, 0], axis: [0, 1, 0], speed: 3.1416}}}
     # (motion: {rotate: {center, axis, speed, until}, translate: {velocity, until}}, both allowed)
-  collision_margin: 1.0e-3      # m, cloth rests this far from a collider surface (implicit:
+  collision_margin: 2.0e-3      # m, cloth rests this far from a collider surface (implicit:
                                 # never closer than margin − activation_distance)
   activation_distance: null     # m, depth of the contact barrier; null = half the margin
                                 # (and half the self-collision thickness)

@@ -16,7 +16,7 @@ SPEC_DEFAULTS = {  # the documented example, entry by entry, and the simulator's
     "scene": {"gravity": [0, -9.81, 0], "pins": ["top_corners"],
               "colliders": [{"sphere": {"center": [0, -0.5, 0], "radius": 0.3}},
                             {"plane": {"point": [0, -1, 0], "normal": [0, 1, 0]}}],
-              "collision_margin": 1.0e-3, "activation_distance": None, "self_collision": None},
+              "collision_margin": 2.0e-3, "activation_distance": None, "self_collision": None},
     "solver": {"method": "implicit", "integrator": "bdf2", "substeps": 1, "tolerance": 1.0e-6,
                "max_iterations": 500, "preconditioner": "multigrid",
                "newton_iterations": 20, "newton_tolerance": 0.04, "friction_velocity": 1.0e-4, "line_search": True,

@@ -344,7 +344,7 @@ class Scene:
     gravity: tuple = _field((0.0, -9.81, 0.0), _vector3())
     pins: tuple = _field((), _pins)
     colliders: tuple = ()
-    collision_margin: float = _field(1.0e-3, _number(minimum=0, exclusive=True))
+    collision_margin: float = _field(2.0e-3, _number(minimum=0, exclusive=True))
     activation_distance: float | None = _field(None, _number(minimum=0, exclusive=True))
     self_collision: SelfCollision | None = None
 

@@ -267,10 +267,13 @@ class BarrierContact:
 
     def crossing(self, x, t):
         """A description of the first crossing of cloth positions x at time t (a cloth
-        triangle through another or through a collider), or None."""
+        triangle through a collider, or through another with self-collision), or None."""
         sc = self.scene
         y = self._positions(x, t)
         pairs = intersecting_pairs(y, sc.faces, sc.obstacle, sc.edges)
+        if not sc.self_contact and len(pairs):  # without self-collision cloth may cross itself
+            pairs = pairs[sc.obstacle[sc.edges[pairs[:, 0]]].any(axis=1)
+                          | sc.obstacle[sc.faces[pairs[:, 1]]].any(axis=1)]
         if len(pairs):
             edge, face = sc.edges[pairs[0][0]], pairs[0][1]
             tri = _face_of_vertices(sc.faces[:sc.n_cloth_faces], edge) if edge[0] < sc.n_cloth else None

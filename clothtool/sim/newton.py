@@ -47,7 +47,7 @@ starts there. Moving pins and animated colliders still short of their end-of-ste
 positions move with the Newton steps: the pins as prescribed components of the solve, the
 colliders through the linearised barrier force −H_cX ΔX on the right-hand side; such a
 step is taken as far as it is collision-free (E need not fall: the prescribed motion adds
-energy), and a step that does not bring them there in twice ``newton_iterations`` is a
+energy), and a step that does not bring them there in four times ``newton_iterations`` is a
 numerical failure. A converged step re-lags the friction pairs and goes on while that
 changes the velocities by more than ``newton_tolerance``. Without barrier contact,
 spheres and planes project vertices out after the step (:mod:`clothtool.sim.collide`).
@@ -219,8 +219,8 @@ class NewtonIntegrator(Integrator):
         if damped and not from_x_n:
             self.elastic.assemble(x_n, self._grad, values)
             self._freeze_damping(values, model.damping / h_eff, x - base)
-        # moving pins and colliders still short of their goal get as many Newton steps again
-        for it in range(2 * solver.newton_iterations):
+        # moving pins and colliders still short of their goal get three times as many more steps
+        for it in range(4 * solver.newton_iterations):
             if it >= solver.newton_iterations and self._behind(x, moving, goal) <= REACHED:
                 break
             elastic = self.elastic.assemble(x, self._grad, values)
