@@ -22,7 +22,8 @@ from clothtool.errors import ClothtoolError, InputError
 OPTIONS = {"fields": "--fields", "dtype": "--dtype", "compression": "--compression",
            "pairs": "--pairs", "reference": "--reference", "uv_scale": "--uv-scale",
            "vertex_average": "--vertex-average", "kabsch": "--kabsch", "pair": "--pair",
-           "field": "--field", "component": "--component", "color_range": "--range"}
+           "field": "--field", "component": "--component", "color_range": "--range",
+           "overrides": "--set"}
 """Library keyword argument → the option that sets it, for the messages of InputError."""
 
 EXIT_CODES_HELP = """\b

@@ -2,7 +2,8 @@
 
 Modules, one idea each:
 
-- ``config``: YAML → validated dataclasses.
+- ``config``: YAML → validated dataclasses, every section and key declared; ``schema``: the
+  toolkit they are declared with.
 - ``mesh``, ``pins``: the rest mesh (grid or PLY) and named pin sets.
 - ``model``: what does not change during a run (rest data, masses, energies, pins, colliders,
   the spring network).

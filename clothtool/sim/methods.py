@@ -75,11 +75,10 @@ def requested_features(config, given=()):
     if config.solver.integrator == "bdf2" and "solver.integrator" in given:
         out.append((BDF2, "solver.integrator: bdf2"))
     for i, collider in enumerate(config.scene.colliders):
-        kind = {"Sphere": "sphere", "Plane": "plane"}.get(type(collider).__name__, "mesh")
-        if kind == "mesh":
-            out.append((CONTACT, f"scene.colliders[{i}].mesh"))
+        if collider.barrier:
+            out.append((CONTACT, f"scene.colliders[{i}].{collider.kind}"))
         elif collider.friction > 0:
-            out.append((FRICTION, f"scene.colliders[{i}].{kind}.friction"))
+            out.append((FRICTION, f"scene.colliders[{i}].{collider.kind}.friction"))
     if config.scene.self_collision is not None:
         out.append((CONTACT, "scene.self_collision"))
     for i, pin in enumerate(config.scene.pins):
