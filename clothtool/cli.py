@@ -112,7 +112,7 @@ def _progress_enabled(quiet):
 
 
 def _analyze_epilog():
-    from clothtool.analysis.fields import help_table
+    from clothtool.fields import help_table
 
     return (ANALYZE_EXAMPLES + "\b\nFields (--fields, comma separated; all = the default table, "
             "extended = every 2D field):\n" + help_table() + ANALYZE_READING)
@@ -194,7 +194,7 @@ def analyze(inputs, output, reference, uv_scale, fields, dtype, compression, ver
         pairs=pair_slice, vertex_average=vertex_average,
     )
     if not quiet:
-        from clothtool.analysis.output.xdmf import xdmf_path
+        from clothtool.io.xdmf import xdmf_path
 
         click.echo(summary.describe())
         click.echo(f"  for ParaView: {xdmf_path(output)}; overview: clothtool info {output}")
