@@ -80,7 +80,7 @@ def parse_obj(data, path="<bytes>", *, reuse=None):
             return mesh
     lines = _Lines(data)
     if lines.indented():
-        return _finish(_parse_per_line(data, path), path)[0]
+        return _finish(_parse_per_line(data, path), path)
     kind = lines.kind
     others = np.flatnonzero(kind == _OTHER)
     for i in others:
@@ -93,7 +93,7 @@ def parse_obj(data, path="<bytes>", *, reuse=None):
     faces = _faces_fast(lines)
     if faces is None:
         faces = _faces_per_line(data, lines, path)
-    mesh, texture_corner = _finish((parsed["v"], parsed["vt"], n_normals, faces), path)
+    mesh, texture_corner = _build((parsed["v"], parsed["vt"], n_normals, faces), path)
     rows = np.flatnonzero(kind == _F)
     if len(rows) and (kind[rows[0]:] == _F).all():  # the faces are the file's last lines
         mesh.face_block = data[lines.starts[rows[0]]:]
@@ -437,6 +437,11 @@ def _parse_per_line(data, path):
 
 
 def _finish(parsed, path):
+    """The mesh of the parsed statements."""
+    return _build(parsed, path)[0]
+
+
+def _build(parsed, path):
     """(mesh, each triangle corner's texture index or None) of the parsed statements."""
     vertices, uv, n_normals, c = parsed
     zeros = np.zeros(len(c.v), np.int64)
