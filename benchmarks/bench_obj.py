@@ -1,4 +1,5 @@
-"""Reading OBJ frames (issue 13): clothtool's numpy reader against trimesh and meshio.
+"""Reading OBJ frames (issue 13): clothtool's numpy reader against trimesh and meshio; and a
+whole OBJ sequence analysed against the same sequence as binary PLY.
 
     python -m benchmarks obj             # writes bench-results/obj.csv and obj.md
 
@@ -9,18 +10,27 @@ clothtool fan-triangulates). Each reader is timed on each file in this process (
 page cache), median of REPEAT reads: clothtool ``read_obj``, ``trimesh.load(path,
 process=False)`` and ``meshio.read(path)``. meshio is an optional benchmark extra; without it
 its rows are left out.
+
+Sequence: SEQ_FRAMES frames of bench_analyze.py's sheet, its coordinates rounded to 6 decimals,
+as binary little-endian float64 PLY and as OBJ (``v`` with %.9g, the same numbers, + ``f a b
+c``); whole
+``clothtool analyze`` commands (numba cache warm), medians of RUNS interleaved runs, and the
+largest difference between the two results' /face/stretch (0: the same numbers).
 """
 
 import pathlib
 import statistics
 import time
 
+import h5py
 import numpy as np
 
 from benchmarks.bench_analyze import make_sequence
-from benchmarks.common import markdown_table, write_csv
+from benchmarks.common import clothtool_cmd, markdown_table, run_timed, write_csv
 
 REPEAT = 5
+SEQ_FRAMES = 20
+RUNS = 3
 
 
 def obj_text(vertices, faces, uv=None):
@@ -115,9 +125,52 @@ def run(out_dir):
         fh.write("\ntriangles: what each reader returns (meshio keeps quads as quad cells, counted "
                  "here as two triangles each). With `process=False` trimesh still splits a vertex "
                  "that has two uv (a seam); clothtool keeps the `v` order and count.\n")
+    sequence = sequence_rows(work)
+    with open(out_dir / "obj.md", "a") as fh:
+        fh.write(f"\n### A sequence of {SEQ_FRAMES} frames, OBJ against binary PLY (whole "
+                 f"`clothtool analyze`, medians of {RUNS} interleaved runs)\n\n")
+        fh.write(markdown_table(sequence, ["format", "seconds", "ms_per_frame", "vs_ply",
+                                           "max_stretch_difference"]))
     for r in rows:
         print(f"{r['file']:34s} {r['reader']:30s} {r['ms_per_frame']:8.1f} ms "
               f"{r['MB_per_s']:7.1f} MB/s")
+    for r in sequence:
+        print(f"sequence {r['format']:4s} {r['seconds']:6.2f} s  {r['vs_ply']:.2f}× PLY")
+
+
+def sequence_rows(work):
+    """The same sequence as binary PLY and as OBJ through ``clothtool analyze``."""
+    from clothtool.io.ply import read_ply, write_ply
+
+    source, ply, obj = work / "seq_source", work / "seq_ply", work / "seq_obj"
+    make_sequence(source, frames=SEQ_FRAMES)
+    ply.mkdir(exist_ok=True)
+    obj.mkdir(exist_ok=True)
+    for k in range(SEQ_FRAMES):
+        if not (obj / f"f{k}.obj").exists():
+            mesh = read_ply(source / f"f{k}.ply")
+            x = np.round(mesh.vertices, 6)  # the same float64 numbers in both files
+            write_ply(ply / f"f{k}.ply", x, mesh.faces)
+            (obj / f"f{k}.obj").write_bytes(obj_text(x, mesh.faces))
+    outs = {"ply": work / "seq_ply.h5", "obj": work / "seq_obj.h5"}
+    commands = {name: clothtool_cmd("analyze", folder, "-o", outs[name], "-q")
+                for name, folder in (("ply", ply), ("obj", obj))}
+    for command in commands.values():
+        run_timed(command)  # numba cache warm, files in the page cache
+    times = {name: [] for name in commands}
+    for _ in range(RUNS):
+        for name, command in commands.items():
+            times[name].append(run_timed(command, fresh=outs[name]))
+    with h5py.File(outs["ply"]) as a, h5py.File(outs["obj"]) as b:
+        difference = float(np.nanmax(np.abs(a["face/stretch"][...] - b["face/stretch"][...])))
+    ply_s = statistics.median(times["ply"])
+    rows = [{"format": name, "seconds": statistics.median(t),
+             "ms_per_frame": 1e3 * statistics.median(t) / SEQ_FRAMES,
+             "vs_ply": statistics.median(t) / ply_s, "max_stretch_difference": difference}
+            for name, t in times.items()]
+    for path in [*outs.values(), *(p.with_suffix(".xdmf") for p in outs.values())]:
+        path.unlink()
+    return rows
 
 
 def _triangles(result):

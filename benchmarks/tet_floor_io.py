@@ -12,7 +12,7 @@ import sys
 import h5py
 import numpy as np
 
-from clothtool.analysis.fields import FIELDS_TET
+from clothtool.fields import FIELDS_TET
 from clothtool.io.h5 import create_pair_dataset, write_row
 
 

@@ -22,7 +22,8 @@ from clothtool.errors import ClothtoolError, InputError
 OPTIONS = {"fields": "--fields", "dtype": "--dtype", "compression": "--compression",
            "pairs": "--pairs", "reference": "--reference", "uv_scale": "--uv-scale",
            "vertex_average": "--vertex-average", "kabsch": "--kabsch", "pair": "--pair",
-           "field": "--field", "component": "--component", "color_range": "--range"}
+           "field": "--field", "component": "--component", "color_range": "--range",
+           "overrides": "--set"}
 """Library keyword argument → the option that sets it, for the messages of InputError."""
 
 EXIT_CODES_HELP = """\b
@@ -111,7 +112,7 @@ def _progress_enabled(quiet):
 
 
 def _analyze_epilog():
-    from clothtool.analysis.fields import help_table
+    from clothtool.fields import help_table
 
     return (ANALYZE_EXAMPLES + "\b\nFields (--fields, comma separated; all = the default table, "
             "extended = every 2D field):\n" + help_table() + ANALYZE_READING)
@@ -193,7 +194,7 @@ def analyze(inputs, output, reference, uv_scale, fields, dtype, compression, ver
         pairs=pair_slice, vertex_average=vertex_average,
     )
     if not quiet:
-        from clothtool.analysis.output.xdmf import xdmf_path
+        from clothtool.io.xdmf import xdmf_path
 
         click.echo(summary.describe())
         click.echo(f"  for ParaView: {xdmf_path(output)}; overview: clothtool info {output}")

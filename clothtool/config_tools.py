@@ -109,26 +109,28 @@ _ValueLoader.add_implicit_resolver(
 
 
 def parse_assignment(text):
-    """'a.b.c=value' → (['a', 'b', 'c'], parsed value)."""
+    """'a.b.c=value' → (['a', 'b', 'c'], parsed value). Errors carry the keyword ``overrides``
+    (the argument of :func:`apply_overrides` and of ``load_config``; the CLI's ``--set``)."""
+    culprit = {"keyword": "overrides", "value": repr(text)}
     key, sep, raw = text.partition("=")
     parts = key.strip().split(".")
     if not sep or not all(p.strip() for p in parts):
-        raise InputError(f"--set {text!r}: expected dotted.key=value, e.g. material.stretch=2e4")
+        raise InputError("expected dotted.key=value, e.g. material.stretch=2e4", **culprit)
     if not raw.strip():
-        raise InputError(f"--set {text!r}: no value after '='")
+        raise InputError("no value after '='", **culprit)
     try:
         value = yaml.load(raw, Loader=_ValueLoader)
     except yaml.YAMLError as exc:
         problem = getattr(exc, "problem", None) or "not valid YAML"
-        raise InputError(f"--set {text!r}: value {raw!r} is {problem}") from None
+        raise InputError(f"value {raw!r} is {problem}", **culprit) from None
     return [p.strip() for p in parts], value
 
 
-def apply_overrides(config, assignments):
-    """A deep copy of the mapping ``config`` with each ``key=value`` of ``assignments`` applied
+def apply_overrides(config, overrides):
+    """A deep copy of the mapping ``config`` with each ``key=value`` of ``overrides`` applied
     in order (later ones win)."""
     result = copy.deepcopy(config) if config is not None else {}
-    for text in assignments:
+    for text in overrides:
         parts, value = parse_assignment(text)
         node = result
         for depth, part in enumerate(parts):
@@ -143,12 +145,13 @@ def apply_overrides(config, assignments):
                     node = node[part]
             elif isinstance(node, list):
                 if not (part.lstrip("-").isdigit() and -len(node) <= int(part) < len(node)):
-                    raise InputError(f"--set {text!r}: {where} is a list of {len(node)}; "
-                                     f"{part!r} is not an index into it")
+                    raise InputError(f"{where} is a list of {len(node)}; {part!r} is not an index "
+                                     "into it", keyword="overrides", value=repr(text))
                 if last:
                     node[int(part)] = value
                 else:
                     node = node[int(part)]
             else:
-                raise InputError(f"--set {text!r}: {where} is {node!r}, not a mapping")
+                raise InputError(f"{where} is {node!r}, not a mapping", keyword="overrides",
+                                 value=repr(text))
     return result

@@ -10,7 +10,8 @@
   θ = atan2(ê·(N_k × N_l), N_k·N_l), 0 when flat, > 0 when the surface bends away from its
   normal; its gradient (Bridson et al. 2003, "Simulation of clothing with folds and wrinkles")
   and exact Hessian;
-- the connectivity tables built by sorting half-edges: interior edges as hinges, one-rings.
+- the connectivity tables built by sorting half-edges: interior edges as hinges, one-rings;
+- the criss-cross triangulation of a regular grid.
 
 Kernels are numba on scalars and 3-tuples (no heap allocation in per-element loops).
 """
@@ -248,3 +249,27 @@ def one_ring(faces, n_vertices):
     owner = key // n
     offsets = np.searchsorted(owner, np.arange(n + 1, dtype=np.int64)).astype(np.int64)
     return offsets, (key % n).astype(np.int64)
+
+
+def grid_triangles(nx, ny):
+    """The (2(nx−1)(ny−1), 3) int64 triangles of an nx × ny vertex grid, vertex index j·nx + i.
+
+    Quads are split along alternating diagonals (criss-cross by parity of i + j) so that the
+    grid has no preferred shear direction; every triangle is counter-clockwise in (i, j).
+    """
+    i, j = np.meshgrid(np.arange(nx - 1), np.arange(ny - 1))
+    i, j = i.ravel(), j.ravel()
+    v00, v10 = j * nx + i, j * nx + i + 1
+    v01, v11 = v00 + nx, v10 + nx
+    even = (i + j) % 2 == 0
+    # even: diagonal v00–v11; odd: diagonal v10–v01
+    t1 = np.where(even[:, None], np.stack([v00, v10, v11], 1), np.stack([v00, v10, v01], 1))
+    t2 = np.where(even[:, None], np.stack([v00, v11, v01], 1), np.stack([v10, v11, v01], 1))
+    return np.concatenate([t1, t2]).astype(np.int64)
+
+
+def grid_uv(nx, ny, width, height):
+    """(nx·ny, 2) in-plane coordinates of that grid, centred on the origin, row j = ny − 1 on top."""
+    uu, vv = np.meshgrid(np.linspace(-width / 2, width / 2, nx),
+                         np.linspace(-height / 2, height / 2, ny))  # (ny, nx): row j, column i
+    return np.stack([uu.ravel(), vv.ravel()], axis=1)

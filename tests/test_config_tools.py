@@ -87,3 +87,21 @@ def test_default_config_matches_the_simulator():
             assert key in raw[section], f"{section}.{key} is missing from init-config"
             if (section, key) not in {("scene", "pins"), ("scene", "colliders"), ("output", "dir")}:
                 assert printed[section][key] == default, f"{section}.{key}"
+
+
+def test_override_errors_name_the_keyword_and_the_cli_its_option(tmp_path):
+    """The library names its keyword argument (``overrides``), never the CLI's flag; the CLI
+    shows the same detail under ``--set``, as it shows ``fields=`` under ``--fields``."""
+    from clothtool.sim.config import load_config
+
+    for overrides in (["material.stretch"], ["time.fps.x=1"], {"time.fps.x": 1}):
+        with pytest.raises(InputError) as caught:
+            load_config({"mesh": {"grid": {"nx": 3}}, "time": {"fps": 30}}, overrides=overrides)
+        assert caught.value.keyword == "overrides" and "--set" not in str(caught.value)
+        assert str(caught.value).startswith("overrides='time.fps.x" if "x" in str(overrides)
+                                            else "overrides='material.stretch'")
+    config = tmp_path / "c.yaml"
+    config.write_text("mesh: {grid: {nx: 3}}\ntime: {fps: 30}\n")
+    result = CliRunner().invoke(main, ["simulate", str(config), "--set", "time.fps.x=1"])
+    assert result.exit_code == 2
+    assert "error: --set 'time.fps.x=1': time.fps is 30, not a mapping" in result.output

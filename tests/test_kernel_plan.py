@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from clothtool.analysis import deformation2d, tet
-from clothtool.analysis.fields import FIELDS_TET
+from clothtool.fields import FIELDS_TET
 from clothtool.analysis.kernel_plan import Slots
 
 

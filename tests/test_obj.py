@@ -325,3 +325,58 @@ def test_kabsch_with_uv_seam_fails_and_without_seam_works(tmp_path):
 def test_errors_name_the_line(body, message):
     with pytest.raises(InputError, match="^bad.obj: " + message.replace("(", r"\(").replace(")", r"\)")):
         parse_obj(SQUARE + body, "bad.obj")
+
+
+def _same_mesh(a, b):
+    assert np.array_equal(a.vertices, b.vertices) and np.array_equal(a.faces, b.faces)
+    assert np.array_equal(a.face_source, b.face_source)
+    assert np.array_equal(a.source_lines, b.source_lines)
+    for x, y in ((a.corner_uv, b.corner_uv), (a.corner_uv_missing, b.corner_uv_missing)):
+        assert (x is None) == (y is None) and (x is None or np.array_equal(x, y, equal_nan=True))
+
+
+REUSE_BODIES = {
+    "triangles": b"v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nf 1 2 3\nf 2 4 3\n",
+    "uv and a quad": b"v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nvt 0 0\nvt 1 0\nvt 0 1\nvt 1 1\n"
+                     b"f 1/1 2/2 4/4 3/3\n",
+    "relative indices": b"o a\nv 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 0 1\nf -3//1 -2//1 -1//1\n",
+    "uv on some corners": b"v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nvt 0 0\nvt 1 0\nvt 0 1\n"
+                          b"f 1/1 2/2 3/3\nf 2 4 3\n",
+}
+
+
+@pytest.mark.parametrize("body", REUSE_BODIES.values(), ids=REUSE_BODIES)
+def test_faces_of_a_sequence_are_parsed_once(body):
+    """A frame that ends with the first frame's face block after as many v, vt and vn lines
+    takes its faces without parsing them, and reads as a fresh parse does; moved vertices and
+    texture positions are read anew."""
+    first = parse_obj(body, "f0.obj")
+    assert first.face_block and body.endswith(first.face_block)
+    moved = body.replace(b"v 1 0 0", b"v 1.5 0.25 0").replace(b"vt 1 0", b"vt 0.5 0.5")
+    later = parse_obj(moved, "f1.obj", reuse=first)
+    assert later.faces is first.faces  # taken over, not parsed
+    _same_mesh(later, parse_obj(moved, "f1.obj"))
+    assert later.vertices[1].tolist() == [1.5, 0.25, 0.0]
+
+
+@pytest.mark.parametrize("change", [
+    lambda b: b + b"f 1 2 3\n",  # another face
+    lambda b: b.replace(b"v 0 0 0\n", b"v 0 0 0\nv 9 9 9\n", 1),  # the indices mean other vertices
+    lambda b: b.replace(b"f ", b"# c\nf ", 1),  # the face lines are no longer the last lines
+    lambda b: b + b"# end\n",
+    lambda b: b"vt 0 0\n" + b,  # one more texture coordinate
+])
+def test_faces_are_parsed_again_when_they_may_differ(change):
+    body = REUSE_BODIES["relative indices"]
+    first = parse_obj(body, "f0.obj")
+    other = change(body)
+    _same_mesh(parse_obj(other, "f1.obj", reuse=first), parse_obj(other, "f1.obj"))
+
+
+def test_a_reused_face_block_still_checks_the_head():
+    first = parse_obj(REUSE_BODIES["triangles"], "f0.obj")
+    bad = REUSE_BODIES["triangles"].replace(b"v 1 1 0", b"v 1 x 0")
+    with pytest.raises(InputError, match="f1.obj: line 4: 'x' is not a number"):
+        parse_obj(bad, "f1.obj", reuse=first)
+    with pytest.raises(InputError, match="line 1: unknown statement 'q'"):
+        parse_obj(b"q\n" + REUSE_BODIES["triangles"], "f1.obj", reuse=first)

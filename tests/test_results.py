@@ -17,7 +17,7 @@ from clothtool.io.ply import read_ply, write_ply
 from clothtool.results.colormap import VIRIDIS_ANCHORS, colorize, viridis
 from clothtool.results.merge import merge_results
 from clothtool.analysis.output.summary import COLUMNS, PERCENTILES, TOL
-from clothtool.analysis.output.vertex_average import VertexAverager
+from clothtool.vertex_average import VertexAverager
 
 FRAMES = 6
 
@@ -428,7 +428,7 @@ def test_plot_without_matplotlib_is_one_line(sheet, monkeypatch):
 def test_xdmf_is_generic_over_face_and_vertex_datasets(sheet):
     """Datasets the 3D variant adds (3×3 rotations, scalars, uint8 flags, per-edge values) are
     picked up by shape: per-face and per-vertex ones become cell and point data."""
-    from clothtool.analysis.output.xdmf import write_xdmf
+    from clothtool.io.xdmf import write_xdmf
 
     tmp, xs, faces = sheet
     out = tmp / "out.h5"

@@ -27,7 +27,7 @@ from numba import njit, prange
 
 from clothtool import numba_setup  # noqa: F401  (threading layer, before the first kernel)
 from clothtool.analysis import kernel_plan
-from clothtool.analysis.fields import FIELDS_2D, NAMES_2D, parse_fields
+from clothtool.fields import FIELDS_2D, NAMES_2D, parse_fields
 from clothtool.analysis.kernel_plan import Slots, fill_nan
 from clothtool.geometry import DEGENERATE, DEGENERATE_TOL, NONFINITE, tangent_edge_matrix
 

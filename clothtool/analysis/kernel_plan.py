@@ -4,7 +4,7 @@
 
 Each field of a kernel has a slot. The kernel's file writes the slot order down (numba
 freezes it into the cached kernel, whose cache is keyed on that file only); :class:`Slots`
-checks it against the registry's fields of that kernel (:mod:`clothtool.analysis.fields`).
+checks it against the registry's fields of that kernel (:mod:`clothtool.fields`).
 A plan gives each slot its offset in the output buffer of its dtype (float fields: ``out``,
 the storage dtype; integer fields: ``out_flags``, uint8), or −1 when it is not computed.
 Field s occupies buf[start_s : start_s + M·n_s], element k at start_s + k·n_s, i.e. an

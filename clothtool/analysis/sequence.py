@@ -5,33 +5,31 @@ depends on the mesh, not on the number of frames. The rest-state data D_r⁻¹ i
 computed once per reference frame, not once per pair.
 """
 
-import contextlib
-import datetime
-import functools
 import os
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
-from clothtool import __version__, interrupt
 from clothtool.analysis.deformation2d import (DEGENERATE_TOL, KernelPlan, allocate_rest,
                                               deformation_fields,
                                               deformation_fields_and_next_rest,
                                               reference_from_positions, reference_from_uv)
 from clothtool.analysis.output.extras import PairExtras
 from clothtool.analysis.output.slices import parse_pair_slice
-from clothtool.analysis.output.vertex_average import parse_vertex_average
-from clothtool.analysis.output.xdmf import xdmf_path, xdmf_text
-from clothtool.analysis.fields import FIELDS_2D, FIELDS_TET, NAMES_2D, parse_fields
-from clothtool.analysis.fields import field as registry_field
+from clothtool.analysis.pairs import (EXTERNAL, AnalysisSummary, RestCache, create_field_datasets,
+                                      kernel_threads_beside_writer, stream_pairs,
+                                      write_common_header)
 from clothtool.errors import InputError
+from clothtool.fields import FIELDS_2D, FIELDS_TET, NAMES_2D, parse_fields
+from clothtool.fields import field as registry_field
 from clothtool.io.frames import FrameReader, discover_frames, is_tet_path
 from clothtool.io.h5 import (AtomicH5, PairWriter, check_not_an_input, check_output_path,
-                              create_pair_dataset, parse_compression)
+                              parse_compression)
+from clothtool.io.xdmf import xdmf_path, xdmf_text
+from clothtool.vertex_average import parse_vertex_average
 
 REFERENCE_MODES = ("previous", "first", "uv")
-EXTERNAL = -1  # the reference index of pairs against a reference mesh or the uv rest shape
 
 
 def parse_dtype(dtype):
@@ -42,68 +40,6 @@ def parse_dtype(dtype):
     if dt not in (np.float32, np.float64):
         raise InputError("not float32 or float64", keyword="dtype", value=repr(dtype))
     return dt
-
-
-@dataclass
-class AnalysisSummary:
-    """What :func:`analyze_sequence` wrote, with a few sanity figures."""
-
-    output: str
-    frames: int
-    pairs: int
-    triangles: int
-    vertices: int
-    fields: tuple
-    reference: str
-    seconds: float
-    stretch_max: float = float("nan")
-    stretch_min: float = float("nan")
-    flagged: int = 0
-    extra: dict = field(default_factory=dict)
-    tets: int = 0  # a tetrahedral sequence: its tetrahedra (and triangles = 0)
-    ignored_cells: int = 0  # cells other than tetrahedra in its first frame
-
-    def describe(self):
-        elements = (f"{self.tets} tetrahedra" if self.tets else f"{self.triangles} triangles")
-        lines = [f"wrote {self.output}: {self.pairs} pairs of {self.frames} frames, "
-                 f"{elements}, {self.vertices} vertices "
-                 f"(reference: {self.reference}) in {self.seconds:.2f} s",
-                 f"  fields: {', '.join(self.fields)}"]
-        if self.ignored_cells:
-            lines.append(f"  ignored: {self.ignored_cells} cells that are not tetrahedra")
-        if np.isfinite(self.stretch_max):
-            lines.append(f"  principal stretch: largest λ1 {self.stretch_max:.4f}, "
-                         f"smallest λ{3 if self.tets else 2} {self.stretch_min:.4f}")
-        if "flags" in self.fields and self.tets:
-            lines.append(f"  flagged tetrahedron-pairs (degenerate, non-finite or inverted): "
-                         f"{self.flagged}")
-        elif "flags" in self.fields:
-            lines.append(f"  flagged triangle-pairs (degenerate, non-finite or flipped): {self.flagged}")
-        if "angle_max" in self.extra:
-            lines.append(f"  3D variant: largest vertex rotation {self.extra['angle_max']:.4f} rad")
-        if "vertex_flagged" in self.extra:
-            lines.append(f"  flagged vertex-pairs (degenerate ring, non-finite or ambiguous): "
-                         f"{self.extra['vertex_flagged']}")
-        return "\n".join(lines)
-
-
-class RestCache:
-    """Rest-state data of the current reference, computed once (:meth:`compute`, in the
-    subclass) and kept while it is used."""
-
-    def __init__(self):
-        self._key, self._data = None, None
-
-    def put(self, index, data):
-        """Rest-state data of frame ``index`` computed elsewhere (see ``next_rest``)."""
-        self._key, self._data = index, data
-
-    def get(self, index, positions):
-        """The rest-state data of reference ``index`` whose positions are ``positions``."""
-        if self._key != index:
-            self._data = self.compute(positions)
-            self._key = index
-        return self._data
 
 
 class _Rest(RestCache):
@@ -225,15 +161,15 @@ def analyze_sequence(inputs, output, *, reference="previous", uv_scale=1.0, fiel
     ``reference``: 'previous' (pairs (i, i+1)), 'first' (pairs (0, i)), 'uv' (the
     texture coordinates times ``uv_scale``) or the path of a PLY mesh.
     ``fields``: 'all', 'extended' or names from the registry
-    (:mod:`clothtool.analysis.fields`); only those are computed and stored.
+    (:mod:`clothtool.fields`); only those are computed and stored.
     ``kabsch``: add the 3D variant (:mod:`clothtool.analysis.variant3d`); ``fields`` may then
     also name its datasets.
     ``pairs``: 'START:STOP' or (start, stop): compute only that slice of the pairs
     (:mod:`clothtool.analysis.output.slices`). ``vertex_average``: face fields to also store as
     area-weighted vertex averages ``/vertex/<name>_avg``
-    (:mod:`clothtool.analysis.output.vertex_average`). Always stored: ``/frame_vertices`` and
+    (:mod:`clothtool.vertex_average`). Always stored: ``/frame_vertices`` and
     ``/summary`` (:mod:`clothtool.analysis.output.extras`); ``out.xdmf`` is written beside
-    ``out.h5`` (:mod:`clothtool.analysis.output.xdmf`).
+    ``out.h5`` (:mod:`clothtool.io.xdmf`).
     Returns an :class:`AnalysisSummary`. Raises :class:`~clothtool.errors.InputError`
     on bad input, before writing anything.
     """
@@ -293,43 +229,13 @@ def run_analysis(plan, *, progress=False, command=None, started=None):
     return summary
 
 
-@contextlib.contextmanager
-def kernel_threads_beside_writer():
-    """Leave one core to the HDF5 writer thread while the kernels run: on 2 cores the
-    100k-triangle benchmark runs in 1.55 s with one kernel thread and 1.7–1.9 s with two."""
-    import numba
-
-    threads = numba.get_num_threads()
-    numba.set_num_threads(max(1, threads - 1))
-    try:
-        yield
-    finally:
-        numba.set_num_threads(threads)
-
-
-def pair_frames(pairs, reader, rest, progress):
-    """(p, r, d, x_r, rest data of r, x_d) for every pair (r, d), one frame in memory at a time:
-    the frame read last is reused when the next pair names it again."""
-    last = (0, reader.first.vertices)
-    for p, (r, d) in enumerate(_progress(pairs, progress)):
-        interrupt.check()
-        r, d = int(r), int(d)
-        if r == EXTERNAL:
-            x_ref = rest.vertices()
-        else:
-            x_ref = last[1] if last[0] == r else reader.positions(r)
-        ref = rest.get(r, x_ref)
-        x = last[1] if last[0] == d else reader.positions(d)
-        last = (d, x)
-        yield p, r, d, x_ref, ref, x
-
-
 def _stream_pairs(pairs, reader, rest, writer, summary, kernel_plan, progress, extras, variant):
-    """Compute every pair, one frame in memory at a time, handing results to ``writer``."""
+    """The triangle kernel (and the 3D variant) in the pair loop of
+    :func:`~clothtool.analysis.pairs.stream_pairs`."""
     faces = reader.faces
     x_uv = rest.uv_positions() if variant and rest.reference == "uv" else None
-    for p, r, d, x_ref, ref, x in pair_frames(pairs, reader, rest, progress):
-        buffers = writer.buffers()
+
+    def compute(buffers, d, x_ref, ref, x):
         kernel = (*ref, DEGENERATE_TOL, kernel_plan.starts, kernel_plan.needs,
                   buffers["kernel/out"], buffers["kernel/out_flags"])
         if rest.reference == "previous":
@@ -340,17 +246,16 @@ def _stream_pairs(pairs, reader, rest, writer, summary, kernel_plan, progress, e
             rest.put(d, next_rest)
         else:
             deformation_fields(x, faces, *kernel)
-        accumulate(summary, buffers["stretch"] if "stretch" in summary.fields else None,
-                   buffers["flags"])
         if variant:
             variant.compute(x_ref if x_uv is None else x_uv, x, buffers)
             _accumulate_3d(summary, buffers)
-        writer.write(p, buffers, functools.partial(extras.pair, p, buffers, ref[0],
-                                                   ((r, x_ref), (d, x))))
+
+    stream_pairs(pairs, reader, rest, writer, summary, extras, compute, progress,
+                 report_stretch="stretch" in summary.fields)
 
 
 def _write_header(h5, plan, pairs, rest, reader, command):
-    write_common_header(h5, plan, pairs, command)
+    write_common_header(h5, plan, pairs, command, DEGENERATE_TOL)
     reference = plan.reference
     if reference == "uv":
         h5.attrs["uv_scale"] = plan.uv_scale
@@ -360,45 +265,6 @@ def _write_header(h5, plan, pairs, rest, reader, command):
     mesh.create_dataset("vertices", data=rest.vertices())
     if reference == "uv":
         mesh.create_dataset(rest.external[1].name, data=rest.external[1].data)
-
-
-def write_common_header(h5, plan, pairs, command, tol=DEGENERATE_TOL):
-    """Root attributes, ``/frames`` and ``/pairs`` of a result (triangles or tetrahedra)."""
-    import h5py
-
-    h5.attrs["clothtool_version"] = __version__
-    h5.attrs["reference"] = plan.reference
-    h5.attrs["command"] = command or "clothtool.analyze_sequence"
-    h5.attrs["created"] = datetime.datetime.now(datetime.timezone.utc).astimezone().isoformat(
-        timespec="seconds")
-    h5.attrs["degenerate_tol"] = tol
-    h5.attrs["dtype"] = plan.dtype.name
-    h5.create_dataset("frames", data=np.array(plan.frames, dtype=object),
-                      dtype=h5py.string_dtype())
-    h5.create_dataset("pairs", data=pairs)
-    h5.attrs["pair_offset"] = plan.pair_offset
-    h5.attrs["pairs_total"] = plan.pairs_total
-
-
-def create_field_datasets(h5, group, names, n_pairs, m, store, compression):
-    """``/<group>/<name>`` (P, M, *shape) for the registry fields ``names`` of ``group``
-    (float fields in ``store``, integer fields uint8)."""
-    parent = h5.create_group(group)
-    datasets = {}
-    for name in names:
-        f = registry_field(name, group)
-        datasets[name] = create_pair_dataset(parent, name, n_pairs, (m, *f.shape),
-                                             np.uint8 if f.integer else store, compression)
-    return datasets
-
-
-def accumulate(summary, stretch, flags):
-    """Into ``summary``: the largest λ1 and the smallest last stretch (λ2, or λ3 of
-    tetrahedra) of a pair's (M, k) ``stretch`` (None: not reported), and its flagged count."""
-    if stretch is not None and stretch.size and np.isfinite(stretch).any():
-        summary.stretch_max = float(np.fmax(summary.stretch_max, np.nanmax(stretch[:, 0])))
-        summary.stretch_min = float(np.fmin(summary.stretch_min, np.nanmin(stretch[:, -1])))
-    summary.flagged += int(np.count_nonzero(flags))
 
 
 def _accumulate_3d(summary, buffers):
@@ -411,9 +277,3 @@ def _accumulate_3d(summary, buffers):
                                            + int(np.count_nonzero(buffers["vertex/flags"])))
 
 
-def _progress(pairs, enabled):
-    if not enabled:
-        return pairs
-    from tqdm import tqdm
-
-    return tqdm(pairs, desc="analyze", unit="pair", leave=False)

@@ -37,7 +37,7 @@ from numba import njit, prange
 
 from clothtool import numba_setup  # noqa: F401  (threading layer, before the first kernel)
 from clothtool.analysis import kernel_plan
-from clothtool.analysis.fields import FIELDS_TET, NAMES_TET
+from clothtool.fields import FIELDS_TET, NAMES_TET
 from clothtool.analysis.kernel_plan import Slots, fill_nan
 from clothtool.vec3 import cross, dot, load, scale, sub
 

@@ -6,21 +6,22 @@ triangle fields; ``/frame_vertices``, ``/pairs``, ``/frames`` and ``/summary`` a
 triangles. One frame (plus the current reference) is in memory at a time.
 """
 
-import functools
 import os
 import time
 
 import numpy as np
 
 from clothtool.analysis.output.extras import PairExtras
-from clothtool.analysis.sequence import (AnalysisSummary, RestCache, accumulate,
-                                         create_field_datasets, kernel_threads_beside_writer,
-                                         pair_frames, write_common_header)
+from clothtool.analysis.pairs import (AnalysisSummary, RestCache, create_field_datasets,
+                                      kernel_threads_beside_writer, stream_pairs,
+                                      write_common_header)
 from clothtool.analysis.tet import (DEGENERATE_TOL, KernelPlan, allocate_rest,
                                     rest_from_positions, tet_fields, tet_fields_and_next_rest)
 from clothtool.errors import InputError
 from clothtool.io.h5 import AtomicH5, PairWriter
 from clothtool.io.tetmesh import TetFrameReader, read_tet_mesh
+from clothtool.io.xdmf import xdmf_text
+
 
 def check_tet_options(reference, kabsch, vertex_average):
     """Options of the triangle analysis that do not apply to tetrahedra: one-line errors."""
@@ -53,8 +54,6 @@ class _TetRest(RestCache):
 def run_tet_analysis(plan, *, progress=False, command=None, started=None):
     """Run the :class:`~clothtool.analysis.sequence.AnalysisPlan` of a tetrahedral sequence:
     read the frames, compute, write ``plan.output`` atomically. Returns its AnalysisSummary."""
-    from clothtool.analysis.output.xdmf import xdmf_text
-
     started = time.perf_counter() if started is None else started
     reader = TetFrameReader(plan.frames)
     external = None
@@ -67,9 +66,8 @@ def run_tet_analysis(plan, *, progress=False, command=None, started=None):
     rest = _TetRest(reader, external)
     pairs = np.array(plan.pairs, dtype=np.int64).reshape(-1, 2)
     m, n = len(reader.tets), reader.n_vertices
-    summary = AnalysisSummary(plan.output, len(plan.frames), len(pairs), 0, n,
-                                       plan.fields, plan.reference, 0.0, tets=m,
-                                       ignored_cells=reader.first.other_cells)
+    summary = AnalysisSummary(plan.output, len(plan.frames), len(pairs), 0, n, plan.fields,
+                              plan.reference, 0.0, tets=m, ignored_cells=reader.first.other_cells)
     compression = dict(plan.compression)
     previous = plan.reference == "previous"
 
@@ -90,24 +88,20 @@ def run_tet_analysis(plan, *, progress=False, command=None, started=None):
             out, out_flags, views = kernel_plan.allocate(plan.dtype)
             return {**views, "kernel/out": out, "kernel/out_flags": out_flags}
 
-        with PairWriter(datasets, make_buffers) as writer, \
-                kernel_threads_beside_writer():
-            for p, r, d, x_ref, ref, x in pair_frames(pairs, reader, rest, progress):
-                buffers = writer.buffers()
-                kernel = (x, reader.tets, *ref, DEGENERATE_TOL, kernel_plan.starts,
-                          kernel_plan.needs, buffers["kernel/out"], buffers["kernel/out_flags"])
-                if previous:
-                    # this frame is the next reference: its D_r⁻¹ from the same pass (fresh
-                    # arrays: the writer thread may still read these)
-                    next_rest = allocate_rest(m)
-                    tet_fields_and_next_rest(*kernel, *next_rest)
-                    rest.put(d, next_rest)
-                else:
-                    tet_fields(*kernel)
-                accumulate(summary, buffers["stretch"], buffers["flags"])
-                # on the writer thread, overlapping the next pair
-                writer.write(p, buffers, functools.partial(extras.pair, p, buffers, ref[0],
-                                                           ((r, x_ref), (d, x))))
+        def compute(buffers, d, x_ref, ref, x):
+            kernel = (x, reader.tets, *ref, DEGENERATE_TOL, kernel_plan.starts,
+                      kernel_plan.needs, buffers["kernel/out"], buffers["kernel/out_flags"])
+            if previous:
+                # this frame is the next reference: its D_r⁻¹ from the same pass (fresh
+                # arrays: the writer thread may still read these)
+                next_rest = allocate_rest(m)
+                tet_fields_and_next_rest(*kernel, *next_rest)
+                rest.put(d, next_rest)
+            else:
+                tet_fields(*kernel)
+
+        with PairWriter(datasets, make_buffers) as writer, kernel_threads_beside_writer():
+            stream_pairs(pairs, reader, rest, writer, summary, extras, compute, progress)
         extras.close()
         atomic.add_sidecar(plan.xdmf, xdmf_text(h5, os.path.basename(plan.output)))
     summary.seconds = time.perf_counter() - started

@@ -17,7 +17,7 @@ import numpy as np
 
 from clothtool.analysis.dihedral import dihedral_fields
 from clothtool.analysis.face3d import face_fields3
-from clothtool.analysis.fields import NAMES_3D, REGISTRY
+from clothtool.fields import NAMES_3D, REGISTRY
 from clothtool.analysis.kabsch import vertex_fields
 from clothtool.geometry import hinges, one_ring
 from clothtool.io.h5 import create_pair_dataset

@@ -10,10 +10,15 @@ reordered. Texture indices give per-corner texture coordinates ``corner_uv`` (M,
 a uv seam (one vertex, two texture positions) is kept.
 
 Fast path: the file is classified line by line on its first bytes with numpy, the ``v`` and
-``vt`` lines are parsed with one ``np.fromstring`` each, and faces with one corner count and
+``vt`` lines are parsed in one pass each (:mod:`clothtool.io.numbers`, correctly rounded, or
+``np.fromstring`` for numbers off its fast path), and faces with one corner count and
 one corner form with another. Anything irregular (mixed polygons or corner forms, comments at
 the end of a line, indented statements) takes a per-line path, which also finds the line of
 any defect: every error is an :class:`~clothtool.errors.InputError` naming file and line.
+
+In a sequence the faces are parsed once: when a file's ``f`` lines are its last lines
+(``face_block``) and a later file ends with the same bytes after as many ``v``, ``vt`` and
+``vn`` lines, only the part before them is read and the faces are taken over (``reuse=``).
 """
 
 import os
@@ -22,6 +27,7 @@ import warnings
 import numpy as np
 
 from clothtool.errors import InputError
+from clothtool.io.numbers import parse_rows
 from clothtool.io.ply import PlyMesh, fan
 
 _PROBE_BYTES = 4096
@@ -41,8 +47,8 @@ _LIMIT = 1 << 62  # an index beyond this is out of range whatever the file
 
 
 def read_obj(path, *, reuse=None):
-    """Read an OBJ file into a :class:`~clothtool.io.ply.PlyMesh` (``reuse`` is accepted for
-    symmetry with :func:`~clothtool.io.ply.read_ply` and ignored)."""
+    """Read an OBJ file into a :class:`~clothtool.io.ply.PlyMesh`. ``reuse``: a mesh read
+    before; when this file ends with its face block, the faces are not parsed again."""
     path = os.fspath(path)
     try:
         with open(path, "rb") as fh:
@@ -51,13 +57,27 @@ def read_obj(path, *, reuse=None):
         raise InputError(f"{path}: is a folder, not an OBJ file") from None
     except OSError as exc:
         raise InputError(f"{path}: cannot read: {exc.strerror}") from None
-    return parse_obj(data, path)
+    return parse_obj(data, path, reuse=reuse)
+
+
+class _FaceBlock:
+    """What the face block of a mesh depends on: the counts of lines, ``v``, ``vt`` and ``vn``
+    lines before it, and each triangle corner's texture index (None without ``vt``)."""
+
+    def __init__(self, counts, texture_corner):
+        self.counts, self.texture_corner = counts, texture_corner
 
 
 def parse_obj(data, path="<bytes>", *, reuse=None):
     """Parse OBJ ``data`` (bytes); see :func:`read_obj`."""
-    if not data.strip():
+    if not data or data.isspace():
         raise InputError(f"{path}: empty file, not an OBJ file")
+    block = getattr(reuse, "obj_faces", None) and reuse.face_block
+    if block and data.endswith(block) and (len(data) == len(block)
+                                           or data[len(data) - len(block) - 1] == 10):
+        mesh = _with_faces_of(data[:len(data) - len(block)], path, reuse)
+        if mesh is not None:
+            return mesh
     lines = _Lines(data)
     if lines.indented():
         return _finish(_parse_per_line(data, path), path)
@@ -73,7 +93,38 @@ def parse_obj(data, path="<bytes>", *, reuse=None):
     faces = _faces_fast(lines)
     if faces is None:
         faces = _faces_per_line(data, lines, path)
-    return _finish((parsed["v"], parsed["vt"], n_normals, faces), path)
+    mesh, texture_corner = _build((parsed["v"], parsed["vt"], n_normals, faces), path)
+    rows = np.flatnonzero(kind == _F)
+    if len(rows) and (kind[rows[0]:] == _F).all():  # the faces are the file's last lines
+        mesh.face_block = data[lines.starts[rows[0]]:]
+        mesh.obj_faces = _FaceBlock((int(rows[0]), len(parsed["v"]), len(parsed["vt"]),
+                                     n_normals), texture_corner)
+    return mesh
+
+
+def _with_faces_of(head, path, reuse):
+    """The mesh of a file that is ``head`` followed by the face block of ``reuse``: ``head``
+    read, the faces taken over; None when ``head`` is not plain ``v``/``vt``/``vn`` lines (and
+    ignored statements) as many as ``reuse`` had."""
+    lines = _Lines(head) if head else None
+    if lines is None or lines.indented() or (lines.kind == _F).any():
+        return None
+    for i in np.flatnonzero(lines.kind == _OTHER):
+        words = head[lines.starts[i]:lines.ends[i]].split(b"#", 1)[0].split()
+        if words and words[0] not in IGNORED:
+            return None  # the full parse names the line
+    vertices, uv = _vectors(lines, _V, path, head), _vectors(lines, _VT, path, head)
+    known = reuse.obj_faces
+    if known.counts != (len(lines.starts), len(vertices), len(uv),
+                        int(np.count_nonzero(lines.kind == _VN))):
+        return None
+    corner_uv, missing = None, reuse.corner_uv_missing
+    if known.texture_corner is not None:
+        corner_uv = uv[known.texture_corner]
+        corner_uv[missing] = np.nan
+    return PlyMesh(vertices, reuse.faces, reuse.face_source, face_block=reuse.face_block,
+                   corner_uv=corner_uv, corner_uv_missing=missing,
+                   source_lines=reuse.source_lines, obj_faces=known)
 
 
 # ---------------------------------------------------------------------------- lines
@@ -164,6 +215,13 @@ def _vectors(lines, kind, path, data):
     width = 3 if kind == _V else 2
     if len(rows) == 0:
         return np.zeros((0, width))
+    table = parse_rows(lines.buf, lines.starts[rows], lines.ends[rows], 1 if kind == _V else 2,
+                       7 if kind == _V else 3)  # v x y z [w] [r g b]; vt u [v [w]]
+    if table is not None and (3 <= table.shape[1] if kind == _V else 1 <= table.shape[1]):
+        if kind == _V:
+            return np.ascontiguousarray(table[:, :3])
+        return np.column_stack([table[:, 0], table[:, 1] if table.shape[1] > 1
+                                else np.zeros(len(rows))])
     counts = lines.tokens()[rows] - 1
     k = int(counts[0])
     if (counts == k).all() and (3 <= k if kind == _V else 1 <= k <= 3):
@@ -379,6 +437,12 @@ def _parse_per_line(data, path):
 
 
 def _finish(parsed, path):
+    """The mesh of the parsed statements."""
+    return _build(parsed, path)[0]
+
+
+def _build(parsed, path):
+    """(mesh, each triangle corner's texture index or None) of the parsed statements."""
     vertices, uv, n_normals, c = parsed
     zeros = np.zeros(len(c.v), np.int64)
     vi = _resolve(c.v, np.ones(len(c.v), bool), c.before[0], len(vertices), c.lengths, c.line,
@@ -389,11 +453,12 @@ def _finish(parsed, path):
         _resolve(c.n, c.has_n, c.before[2], n_normals, c.lengths, c.line, "normal", path)
     corner, source = fan(c.lengths)
     faces = vi[corner]
-    corner_uv = missing = None
+    corner_uv = missing = texture_corner = None
     if c.has_t.any():
-        corner_uv = uv[ti[corner]]
+        texture_corner = ti[corner]
+        corner_uv = uv[texture_corner]
         missing = ~c.has_t[corner].all(axis=1)
         corner_uv[missing] = np.nan
     mesh = PlyMesh(vertices, faces, source)
     mesh.corner_uv, mesh.corner_uv_missing, mesh.source_lines = corner_uv, missing, c.line
-    return mesh
+    return mesh, texture_corner

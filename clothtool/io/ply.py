@@ -105,6 +105,7 @@ class PlyMesh:
     corner_uv: np.ndarray | None = None  # (M, 3, 2) per-corner texture coordinates, or None
     corner_uv_missing: np.ndarray | None = None  # (M,) bool: triangles without corner uv
     source_lines: np.ndarray | None = None  # (F,) file line of each source face (OBJ only)
+    obj_faces: object = None  # OBJ: what a later frame needs to reuse ``face_block`` (io.obj)
 
     @property
     def uv(self):

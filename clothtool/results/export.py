@@ -15,7 +15,7 @@ import numpy as np
 from clothtool.errors import InputError
 from clothtool.results.colormap import colorize, value_range
 from clothtool.io.result import open_result
-from clothtool.analysis.output.vertex_average import VertexAverager
+from clothtool.vertex_average import VertexAverager
 
 
 def parse_range(spec):

@@ -6,9 +6,8 @@ import os
 
 import numpy as np
 
-from clothtool.analysis.output.summary import (COLUMNS, FLAG_BITS, INT_COLUMNS, TET_COLUMNS,
-                                               TET_FLAG_BITS, TET_INT_COLUMNS, TOL)
-from clothtool.io.result import open_result, read_summary
+from clothtool.io.result import (COLUMNS, FLAG_BITS, INT_COLUMNS, TET_COLUMNS, TET_FLAG_BITS,
+                                 TET_INT_COLUMNS, TOL, open_result, read_summary)
 
 REFERENCE_PAIRS = {"previous": "pairs (i, i+1)", "first": "pairs (0, i)", "uv": "uv rest shape"}
 TABLE = (("pair", "pair", "{:d}"), ("reference", "ref", "{:d}"), ("deformed", "def", "{:d}"),
@@ -94,7 +93,7 @@ def _table(summary, table):
 
 def summary_csv(path):
     """The ``/summary`` of the result at ``path`` as CSV text: a header row of
-    :data:`~clothtool.analysis.output.summary.COLUMNS`, then one row per pair (floats in full
+    :data:`~clothtool.io.result.COLUMNS`, then one row per pair (floats in full
     precision)."""
     with open_result(path) as h5:
         summary = read_summary(h5)

@@ -21,8 +21,7 @@ import os
 import numpy as np
 
 from clothtool.errors import InputError
-from clothtool.analysis.output.xdmf import VIEWS
-from clothtool.io.result import open_result
+from clothtool.io.result import VIEWS, add_aliases, open_result
 
 PAIR_GROUPS = ("face", "tet", "vertex", "edge", "summary")
 VARYING_ATTRS = ("command", "created", "pair_offset", "merged_commands")  # differ between parts
@@ -120,9 +119,8 @@ def merge_results(paths, output, *, command=None, allow_partial=False):
     """Join the slice results ``paths`` into ``output`` (atomic HDF5, plus its XDMF).
     ``allow_partial``: accept parts that cover only some of the analysis' pairs (still
     consecutive). Returns (pair_offset, number of pairs) of the merged result."""
-    from clothtool.analysis.output.summary import add_aliases
     from clothtool.io.h5 import AtomicH5, check_output_path
-    from clothtool.analysis.output.xdmf import xdmf_path, xdmf_text
+    from clothtool.io.xdmf import xdmf_path, xdmf_text
 
     if not paths:
         raise InputError("merge: no input files")

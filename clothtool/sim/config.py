@@ -1,22 +1,21 @@
-"""Simulation config: YAML → validated, frozen dataclasses.
+"""Simulation config: YAML → validated, frozen dataclasses, every section and key declared here.
 
-Every problem is an :class:`~clothtool.errors.InputError` whose one-line message
-names the file and the dotted key (``material.stretch``), says what is wrong and,
-for an unknown key, suggests the closest valid one (difflib).
+Every problem is an :class:`~clothtool.errors.InputError` whose one-line message names the
+file and the dotted key (``material.stretch``), says what is wrong and, for an unknown key,
+suggests the closest valid one. The toolkit the sections are declared with is
+:mod:`clothtool.sim.schema`: a key is one :func:`~clothtool.sim.schema.setting` line (default
+and check), a section one dataclass plus its line in :class:`Config`, a collider kind one
+dataclass plus its entry in ``COLLIDER_KINDS``; what no single key can check is the section's
+``finish``.
 
-Relative paths (``mesh.ply``, ``output.dir``) are resolved against the config
-file's folder; a config given as a dict resolves them against the current folder.
-
-PyYAML reads ``1e5`` (no dot) as a string; float keys accept such numeric
-strings so that ``stretch: 1e5`` means what it says.
+Relative paths (``mesh.ply``, ``output.dir``) are resolved against the config file's folder;
+a config given as a dict resolves them against the current folder.
 """
 
 from __future__ import annotations
 
-import difflib
-import math
 import os
-from dataclasses import dataclass, field, fields, is_dataclass
+from dataclasses import dataclass, fields, replace
 from pathlib import Path
 from typing import Mapping
 
@@ -24,6 +23,11 @@ import yaml
 
 from clothtool.errors import InputError
 from clothtool.sim import methods
+from clothtool.sim.schema import (Section, as_dict, choice, flag, integer, number, one_of,
+                                  pair_or_number, path, resolve_paths, section, setting,
+                                  suggest, tagged, type_error, vector3)
+
+__all__ = ["load_config", "as_dict", "Config", "SECTIONS", "COLLIDER_KINDS"]
 
 PLANES = ("xy", "xz", "yz")
 BEND_MODELS = ("dihedral", "quadratic")
@@ -32,325 +36,290 @@ PRECONDITIONERS = ("jacobi", "multigrid")
 PBD_VARIANTS = ("gauss-seidel", "jacobi")
 INTEGRATORS = ("bdf2", "euler")
 
-
-# ---------------------------------------------------------------------------- schema
-#
-# Each dataclass field carries ``metadata["check"]``: a function (value, key) → value
-# that converts and validates one YAML value. Nested sections are dataclasses.
+positive = number(minimum=0, exclusive=True)
+non_negative = number(minimum=0)
 
 
-def _number(*, minimum=None, exclusive=False, maximum=None):
-    def check(value, key):
-        if isinstance(value, bool) or not isinstance(value, (int, float, str)):
-            raise _type_error(key, "a number", value)
-        try:
-            value = float(value)
-        except ValueError:
-            raise _type_error(key, "a number", value) from None
-        if not math.isfinite(value):
-            raise InputError(f"{key} must be finite, got {value}")
-        if minimum is not None and (value < minimum or (exclusive and value == minimum)):
-            raise InputError(f"{key} must be {'>' if exclusive else '≥'} {minimum:g}, got {value:g}")
-        if maximum is not None and value > maximum:
-            raise InputError(f"{key} must be ≤ {maximum:g}, got {value:g}")
-        return value
-    return check
-
-
-def _integer(*, minimum):
-    def check(value, key):
-        if isinstance(value, bool) or not isinstance(value, int):
-            if isinstance(value, float) and value.is_integer():
-                value = int(value)
-            else:
-                raise _type_error(key, "an integer", value)
-        if value < minimum:
-            raise InputError(f"{key} must be ≥ {minimum}, got {value}")
-        return value
-    return check
-
-
-def _warp_weft(*, exclusive):
-    """A number (the same along u and v) or a list of two: [along u (warp), along v (weft)]."""
-    number = _number(minimum=0, exclusive=exclusive)
-
-    def check(value, key):
-        if isinstance(value, (list, tuple)):
-            if len(value) != 2:
-                raise _type_error(key, "a number or a list of 2 numbers [warp, weft]", value)
-            return tuple(number(v, f"{key}[{i}]") for i, v in enumerate(value))
-        return number(value, key)
-    return check
-
-
-def _below_one(value, key):
-    value = _number(minimum=0)(value, key)
-    if value >= 1.0:
-        raise InputError(f"{key} must be < 1, got {value:g}")
-    return value
-
-
-def _choice(options):
-    def check(value, key):
-        if value not in options:
-            hint = _suggest(str(value), options)
-            raise InputError(f"{key} must be one of {', '.join(options)}, got {value!r}{hint}")
-        return value
-    return check
-
-
-def _flag(value, key):
-    if not isinstance(value, bool):
-        raise _type_error(key, "true or false", value)
-    return value
-
-
-def _path(value, key):
-    if not isinstance(value, str) or not value:
-        raise _type_error(key, "a path", value)
-    return Path(value)
-
-
-def _vector3(*, nonzero=False):
-    number = _number()
-
-    def check(value, key):
-        if not isinstance(value, (list, tuple)) or len(value) != 3:
-            raise _type_error(key, "a list of 3 numbers", value)
-        vec = tuple(number(v, f"{key}[{i}]") for i, v in enumerate(value))
-        if nonzero and not any(vec):
-            raise InputError(f"{key} must not be the zero vector")
-        return vec
-    return check
-
-
-def _pin_vertices(value, key):
-    """A pin-set name or a vertex index (indices are checked against the mesh later)."""
-    from clothtool.sim.pins import PIN_SETS
-
-    if isinstance(value, bool) or not isinstance(value, (int, str)):
-        raise _type_error(key, "a pin-set name or a vertex index", value)
-    if isinstance(value, str) and value not in PIN_SETS:
-        raise InputError(f"{key}: unknown pin set {value!r}{_suggest(value, PIN_SETS)}"
-                         f" (known: {', '.join(PIN_SETS)})")
-    if isinstance(value, int) and value < 0:
-        raise InputError(f"{key}: vertex index must be ≥ 0, got {value}")
-    return value
-
-
-def _pins(value, key):
-    """Pin entries: set names, vertex indices, and moving groups ``{vertices: …, rotate: {…}}``
-    or ``{vertices: …, translate: {…}}`` (:class:`PinGroup`)."""
-    if not isinstance(value, list):
-        raise _type_error(key, "a list of pin-set names, vertex indices and pin groups", value)
-    out = []
-    for i, item in enumerate(value):
-        here = f"{key}[{i}]"
-        if isinstance(item, dict):
-            out.append(_pin_group(item, here))
-        else:
-            out.append(_pin_vertices(item, here))
-    return tuple(out)
-
-
-def _pin_group(raw, key):
-    _check_keys(raw, {f.name for f in fields(PinGroup)}, key)
-    if "vertices" not in raw:
-        raise InputError(f"{key}: a pin group needs 'vertices' (a pin-set name or a list of "
-                         "names and vertex indices)")
-    vertices = raw["vertices"]
-    if isinstance(vertices, list):
-        if not vertices:
-            raise InputError(f"{key}.vertices must not be empty")
-        vertices = tuple(_pin_vertices(v, f"{key}.vertices[{j}]") for j, v in enumerate(vertices))
-    else:
-        vertices = (_pin_vertices(vertices, f"{key}.vertices"),)
-    motions = [m for m in ("rotate", "translate") if raw.get(m) is not None]
-    if len(motions) > 1:
-        raise InputError(f"{key}: give at most one of rotate and translate")
-    kwargs = {"vertices": vertices}
-    for name in motions:
-        body = raw[name]
-        if not isinstance(body, dict):
-            raise _type_error(f"{key}.{name}", "a mapping", body)
-        cls = Rotate if name == "rotate" else Translate
-        kwargs[name] = _build_section(cls, body, f"{key}.{name}", None)
-    return PinGroup(**kwargs)
-
-
-def _field(default, check, **kw):
-    if isinstance(default, (list, dict)):
-        return field(default_factory=lambda: default, metadata={"check": check}, **kw)
-    return field(default=default, metadata={"check": check}, **kw)
+# ---------------------------------------------------------------------------- mesh
 
 
 @dataclass(frozen=True)
-class GridSpec:
+class GridSpec(Section):
     """A regular grid of ``nx`` × ``ny`` vertices, centred, in ``plane``; row ny−1 is the top."""
 
-    nx: int = _field(30, _integer(minimum=2))
-    ny: int = _field(30, _integer(minimum=2))
-    width: float = _field(1.0, _number(minimum=0, exclusive=True))
-    height: float = _field(1.0, _number(minimum=0, exclusive=True))
-    plane: str = _field("xy", _choice(PLANES))
+    nx: int = setting(30, integer(minimum=2))
+    ny: int = setting(30, integer(minimum=2))
+    width: float = setting(1.0, positive)
+    height: float = setting(1.0, positive)
+    plane: str = setting("xy", choice(PLANES))
 
 
 @dataclass(frozen=True)
-class MeshSpec:
+class MeshSpec(Section):
     """Exactly one of ``grid`` and ``ply``. ``uv_scale``: metres per uv unit of a PLY's s,t."""
 
-    grid: GridSpec | None = None
-    ply: Path | None = _field(None, _path)
-    uv_scale: float = _field(1.0, _number(minimum=0, exclusive=True))
+    grid: GridSpec | None = section(GridSpec, optional=True)
+    ply: Path | None = setting(None, path)
+    uv_scale: float = setting(1.0, positive)
+
+    def finish(self, given, key):
+        if (self.grid is None) == (self.ply is None):
+            raise InputError("mesh needs exactly one of mesh.grid and mesh.ply")
+        return self
+
+
+# ---------------------------------------------------------------------------- material
 
 
 @dataclass(frozen=True)
-class Material:
+class Material(Section):
     """Areal density (kg/m²), membrane stiffnesses (N/m), bending stiffness (N·m), damping (s).
 
     ``stretch`` and ``rest_stretch`` are a number or [along u (warp), along v (weft)];
     ``rest_stretch`` holds Baraff–Witkin's rest length factors b_u, b_v.
     """
 
-    density: float = _field(0.2, _number(minimum=0, exclusive=True))
-    stretch: float | tuple = _field(5000.0, _warp_weft(exclusive=False))
-    rest_stretch: float | tuple = _field(1.0, _warp_weft(exclusive=True))
-    shear: float = _field(50.0, _number(minimum=0))
-    bend: float = _field(1.0e-5, _number(minimum=0))
-    damping: float = _field(0.01, _number(minimum=0))
-    bend_model: str = _field("dihedral", _choice(BEND_MODELS))
+    density: float = setting(0.2, positive)
+    stretch: float | tuple = setting(5000.0, pair_or_number(exclusive=False))
+    rest_stretch: float | tuple = setting(1.0, pair_or_number(exclusive=True))
+    shear: float = setting(50.0, non_negative)
+    bend: float = setting(1.0e-5, non_negative)
+    damping: float = setting(0.01, non_negative)
+    bend_model: str = setting("dihedral", choice(BEND_MODELS))
+
+
+# ---------------------------------------------------------------------------- scene
+#
+# A collider's ``kind`` is its name in the config; ``barrier`` colliders are contact surfaces
+# (implicit solver, intersection-free), the others vertex constraints projected after a step.
 
 
 @dataclass(frozen=True)
-class Sphere:
-    center: tuple = _field((0.0, 0.0, 0.0), _vector3())
-    radius: float = _field(1.0, _number(minimum=0, exclusive=True))
-    friction: float = _field(0.0, _number(minimum=0))
-    motion: "Motion | None" = None
+class Rotate(Section):
+    """Turn about the axis through ``center`` at ``speed`` rad/s (right-hand rule) until
+    ``until`` s (None: the whole run)."""
+
+    center: tuple = setting((0.0, 0.0, 0.0), vector3())
+    axis: tuple = setting((1.0, 0.0, 0.0), vector3(nonzero=True))
+    speed: float = setting(0.0, number())
+    until: float | None = setting(None, non_negative)
 
 
 @dataclass(frozen=True)
-class Plane:
-    point: tuple = _field((0.0, 0.0, 0.0), _vector3())
-    normal: tuple = _field((0.0, 1.0, 0.0), _vector3(nonzero=True))
-    friction: float = _field(0.0, _number(minimum=0))
-    motion: "Motion | None" = None
+class Translate(Section):
+    """Move at ``velocity`` m/s until ``until`` s (None: the whole run)."""
+
+    velocity: tuple = setting((0.0, 0.0, 0.0), vector3())
+    until: float | None = setting(None, non_negative)
 
 
 @dataclass(frozen=True)
-class Capsule:
+class Motion(Section):
+    """A collider's rigid motion: x(t) = c + T(t) + R(θ(t))(x₀ − c), turning about the axis
+    through ``rotate.center`` (which moves with the translation) and moving at
+    ``translate.velocity``, each until its own ``until``."""
+
+    rotate: Rotate | None = section(Rotate, optional=True)
+    translate: Translate | None = section(Translate, optional=True)
+
+    def finish(self, given, key):
+        if self.rotate is None and self.translate is None:
+            raise InputError(f"{key} needs rotate and/or translate")
+        return self
+
+
+def motion():
+    """Every collider's optional ``motion``."""
+    return section(Motion, optional=True, what="a mapping (rotate, translate)")
+
+
+@dataclass(frozen=True)
+class Sphere(Section):
+    kind, barrier = "sphere", False
+
+    center: tuple = setting((0.0, 0.0, 0.0), vector3())
+    radius: float = setting(1.0, positive)
+    friction: float = setting(0.0, non_negative)
+    motion: Motion | None = motion()
+
+
+@dataclass(frozen=True)
+class Plane(Section):
+    """The half-space on the side ``normal`` points to, bounded by the plane through
+    ``point``."""
+
+    kind, barrier = "plane", False
+
+    point: tuple = setting((0.0, 0.0, 0.0), vector3())
+    normal: tuple = setting((0.0, 1.0, 0.0), vector3(nonzero=True))
+    friction: float = setting(0.0, non_negative)
+    motion: Motion | None = motion()
+
+
+@dataclass(frozen=True)
+class Capsule(Section):
     """The points within ``radius`` of the segment from ``a`` to ``b``."""
 
-    a: tuple = _field((-0.5, 0.0, 0.0), _vector3())
-    b: tuple = _field((0.5, 0.0, 0.0), _vector3())
-    radius: float = _field(0.1, _number(minimum=0, exclusive=True))
-    friction: float = _field(0.0, _number(minimum=0))
-    motion: "Motion | None" = None
+    kind, barrier = "capsule", True
+
+    a: tuple = setting((-0.5, 0.0, 0.0), vector3())
+    b: tuple = setting((0.5, 0.0, 0.0), vector3())
+    radius: float = setting(0.1, positive)
+    friction: float = setting(0.0, non_negative)
+    motion: Motion | None = motion()
+
+    def finish(self, given, key):
+        if tuple(self.a) == tuple(self.b):
+            raise InputError(f"{key}: a and b must differ (use a sphere for a point)")
+        return self
 
 
 @dataclass(frozen=True)
-class Box:
+class Box(Section):
     """A box of edge lengths ``size`` centred on ``center``, turned by ``angle`` rad about
     ``axis`` (right-hand rule) from axis-aligned."""
 
-    center: tuple = _field((0.0, 0.0, 0.0), _vector3())
-    size: tuple = _field((1.0, 1.0, 1.0), _vector3())
-    axis: tuple = _field((0.0, 1.0, 0.0), _vector3(nonzero=True))
-    angle: float = _field(0.0, _number())
-    friction: float = _field(0.0, _number(minimum=0))
-    motion: "Motion | None" = None
+    kind, barrier = "box", True
+
+    center: tuple = setting((0.0, 0.0, 0.0), vector3())
+    size: tuple = setting((1.0, 1.0, 1.0), vector3())
+    axis: tuple = setting((0.0, 1.0, 0.0), vector3(nonzero=True))
+    angle: float = setting(0.0, number())
+    friction: float = setting(0.0, non_negative)
+    motion: Motion | None = motion()
+
+    def finish(self, given, key):
+        if min(self.size) <= 0.0:
+            raise InputError(f"{key}.size: every edge length must be positive, got {list(self.size)}")
+        return self
 
 
 @dataclass(frozen=True)
-class MeshCollider:
+class MeshCollider(Section):
     """A triangle mesh: one ``ply`` or ``obj`` file (static), or a folder of ``frames`` (PLY or
     OBJ, one topology) shown at ``fps``, positions linear in time between frames, the last
     frame held after the end."""
 
-    ply: Path | None = _field(None, _path)
-    obj: Path | None = _field(None, _path)
-    frames: Path | None = _field(None, _path)
-    fps: float = _field(30.0, _number(minimum=0, exclusive=True))
-    friction: float = _field(0.0, _number(minimum=0))
-    motion: "Motion | None" = None
+    kind, barrier = "mesh", True
+    SOURCES = ("ply", "obj", "frames")
+
+    ply: Path | None = setting(None, path)
+    obj: Path | None = setting(None, path)
+    frames: Path | None = setting(None, path)
+    fps: float = setting(30.0, positive)
+    friction: float = setting(0.0, non_negative)
+    motion: Motion | None = motion()
+
+    def finish(self, given, key):
+        source = one_of(self.SOURCES, {k for k in self.SOURCES if getattr(self, k) is not None},
+                        key)
+        if "fps" in given and source != "frames":
+            raise InputError(f"{key}.fps applies to frames only")
+        return self
 
     @property
     def source(self):
         """(key, path) of the one mesh source given."""
-        return next((k, getattr(self, k)) for k in ("ply", "obj", "frames") if getattr(self, k))
+        return next((k, getattr(self, k)) for k in self.SOURCES if getattr(self, k))
 
 
-COLLIDER_KINDS = {"sphere": Sphere, "plane": Plane, "capsule": Capsule, "box": Box,
-                  "mesh": MeshCollider}
+COLLIDER_KINDS = {cls.kind: cls for cls in (Sphere, Plane, Capsule, Box, MeshCollider)}
 
 
 @dataclass(frozen=True)
-class SelfCollision:
+class SelfCollision(Section):
     """Cloth–cloth contact: surfaces kept ``thickness`` (m) apart, Coulomb ``friction``."""
 
-    thickness: float = _field(0.002, _number(minimum=0, exclusive=True))
-    friction: float = _field(0.0, _number(minimum=0))
+    thickness: float = setting(0.002, positive)
+    friction: float = setting(0.0, non_negative)
+
+
+def pin_vertices(value, key):
+    """A pin-set name or a vertex index (indices are checked against the mesh later)."""
+    from clothtool.sim.pins import PIN_SETS
+
+    if isinstance(value, bool) or not isinstance(value, (int, str)):
+        raise type_error(key, "a pin-set name or a vertex index", value)
+    if isinstance(value, str) and value not in PIN_SETS:
+        raise InputError(f"{key}: unknown pin set {value!r}{suggest(value, PIN_SETS)}"
+                         f" (known: {', '.join(PIN_SETS)})")
+    if isinstance(value, int) and value < 0:
+        raise InputError(f"{key}: vertex index must be ≥ 0, got {value}")
+    return value
+
+
+def pin_vertex_list(value, key):
+    """One pin-set name or vertex index, or a non-empty list of them."""
+    if not isinstance(value, list):
+        return (pin_vertices(value, key),)
+    if not value:
+        raise InputError(f"{key} must not be empty")
+    return tuple(pin_vertices(v, f"{key}[{j}]") for j, v in enumerate(value))
 
 
 @dataclass(frozen=True)
-class Rotate:
-    """Turn about the axis through ``center`` at ``speed`` rad/s (right-hand rule) until
-    ``until`` s (None: the whole run)."""
+class PinGroup(Section):
+    """Pinned vertices (set names and indices) on a rigid motion of their initial positions:
+    ``vertices`` with at most one of ``rotate`` and ``translate``."""
 
-    center: tuple = _field((0.0, 0.0, 0.0), _vector3())
-    axis: tuple = _field((1.0, 0.0, 0.0), _vector3(nonzero=True))
-    speed: float = _field(0.0, _number())
-    until: float | None = _field(None, _number(minimum=0))
+    vertices: tuple = setting((), pin_vertex_list)
+    rotate: Rotate | None = section(Rotate, optional=True)
+    translate: Translate | None = section(Translate, optional=True)
 
-
-@dataclass(frozen=True)
-class Translate:
-    """Move at ``velocity`` m/s until ``until`` s (None: the whole run)."""
-
-    velocity: tuple = _field((0.0, 0.0, 0.0), _vector3())
-    until: float | None = _field(None, _number(minimum=0))
-
-
-@dataclass(frozen=True)
-class PinGroup:
-    """Pinned vertices (set names and indices) on a rigid motion of their initial positions."""
-
-    vertices: tuple = ()
-    rotate: Rotate | None = None
-    translate: Translate | None = None
+    def finish(self, given, key):
+        if "vertices" not in given:
+            raise InputError(f"{key}: a pin group needs 'vertices' (a pin-set name or a list of "
+                             "names and vertex indices)")
+        if self.rotate is not None and self.translate is not None:
+            raise InputError(f"{key}: give at most one of rotate and translate")
+        return self
 
     @property
     def motion(self):
         return self.rotate or self.translate
 
 
-@dataclass(frozen=True)
-class Motion:
-    """A collider's rigid motion: x(t) = c + T(t) + R(θ(t))(x₀ − c), turning about the axis
-    through ``rotate.center`` (moving with the translation) and moving at
-    ``translate.velocity``, each until its own ``until``."""
-
-    rotate: Rotate | None = None
-    translate: Translate | None = None
-
-
-@dataclass(frozen=True)
-class Scene:
-    """``collision_margin`` (m): cloth is kept at least this far from every collider
-    surface; ``self_collision``: cloth–cloth contact, None = off. The contact barrier acts
-    within ``activation_distance`` (m) beyond the margin or the cloth's thickness; absent,
-    it is ACTIVATION (4 %) of each, so that resting cloth sits within 4 % of them."""
-
-    gravity: tuple = _field((0.0, -9.81, 0.0), _vector3())
-    pins: tuple = _field((), _pins)
-    colliders: tuple = ()
-    collision_margin: float = _field(2.0e-3, _number(minimum=0, exclusive=True))
-    activation_distance: float | None = _field(None, _number(minimum=0, exclusive=True))
-    self_collision: SelfCollision | None = None
+def pins(value, key):
+    """Pin entries: set names, vertex indices, and moving groups ``{vertices: …, rotate: {…}}``
+    or ``{vertices: …, translate: {…}}`` (:class:`PinGroup`)."""
+    if not isinstance(value, list):
+        raise type_error(key, "a list of pin-set names, vertex indices and pin groups", value)
+    return tuple(PinGroup.build(item, f"{key}[{i}]") if isinstance(item, dict)
+                 else pin_vertices(item, f"{key}[{i}]") for i, item in enumerate(value))
 
 
 @dataclass(frozen=True)
-class Solver:
+class Scene(Section):
+    """``collision_margin`` (m): cloth rests this far from every collider surface;
+    ``self_collision``: cloth–cloth contact, None = off. The implicit method's contact
+    barrier pushes from the margin (and the thickness) in to its wall ``activation_distance``
+    closer (None: half of each), which no pair ever crosses; the other methods project
+    vertices onto spheres and planes."""
+
+    gravity: tuple = setting((0.0, -9.81, 0.0), vector3())
+    pins: tuple = setting((), pins)
+    colliders: tuple = setting((), tagged(COLLIDER_KINDS, what="collider"))
+    collision_margin: float = setting(2.0e-3, positive)
+    activation_distance: float | None = setting(None, positive)
+    self_collision: SelfCollision | None = section(
+        SelfCollision, optional=True, what="a mapping (thickness, friction)")
+
+    def finish(self, given, key):
+        d = self.activation_distance
+        for what, xi in (("scene.collision_margin", self.collision_margin),
+                         ("self_collision.thickness",
+                          self.self_collision.thickness if self.self_collision else None)):
+            if d is not None and xi is not None and d >= xi:
+                raise InputError(f"scene.activation_distance ({d:g} m) must be below {what} "
+                                 f"({xi:g} m): the barrier's wall is that much closer in")
+        return self
+
+
+# ---------------------------------------------------------------------------- solver, time, output
+
+
+@dataclass(frozen=True)
+class Solver(Section):
     """The time step and its solve.
 
     ``integrator``: ``bdf2`` (second order, the default) or ``euler`` (backward Euler),
@@ -362,8 +331,8 @@ class Solver:
     for (later Newton steps ask for less: Eisenstat–Walker); ``preconditioner`` is
     block Jacobi or an aggregation multigrid V-cycle. ``newton_iterations: 1`` is
     Baraff–Witkin's linearised step. A step whose speed exceeds ``max_speed`` (m/s)
-    counts as a blow-up. ``friction_velocity`` ε_v (m/s) is the sliding speed below
-    which contact friction holds (it creeps at most at ε_v where Coulomb's law sticks).
+    counts as a blow-up. ``friction_velocity`` ε_v (m/s) is the sliding speed below which
+    contact friction holds (it creeps at most at ε_v where Coulomb's law sticks).
 
     ``method`` picks the solver (``clothtool.sim.solvers``, ``docs/solvers.md``):
     ``mass-spring`` uses the Newton/PCG keys above; ``pbd``, ``xpbd`` and
@@ -377,49 +346,54 @@ class Solver:
     gradient of the step's potential is below ``vbd_tolerance`` × ‖M g‖ (0 = off).
     """
 
-    method: str = _field("implicit", _choice(METHODS))
-    integrator: str = _field("bdf2", _choice(INTEGRATORS))
-    substeps: int = _field(1, _integer(minimum=1))
-    tolerance: float = _field(1.0e-6, _number(minimum=0, exclusive=True, maximum=1))
-    max_iterations: int = _field(500, _integer(minimum=1))
-    preconditioner: str = _field("multigrid", _choice(PRECONDITIONERS))
-    newton_iterations: int = _field(20, _integer(minimum=1))
-    newton_tolerance: float = _field(0.04, _number(minimum=0))
-    friction_velocity: float = _field(1.0e-4, _number(minimum=0, exclusive=True))
-    line_search: bool = _field(True, _flag)
-    max_speed: float = _field(1000.0, _number(minimum=0, exclusive=True))
+    method: str = setting("implicit", choice(METHODS))
+    integrator: str = setting("bdf2", choice(INTEGRATORS))
+    substeps: int = setting(1, integer(minimum=1))
+    tolerance: float = setting(1.0e-6, number(minimum=0, exclusive=True, maximum=1))
+    max_iterations: int = setting(500, integer(minimum=1))
+    preconditioner: str = setting("multigrid", choice(PRECONDITIONERS))
+    newton_iterations: int = setting(20, integer(minimum=1))
+    newton_tolerance: float = setting(0.04, non_negative)
+    friction_velocity: float = setting(1.0e-4, positive)
+    line_search: bool = setting(True, flag)
+    max_speed: float = setting(1000.0, positive)
     # the alternative methods (clothtool.sim.solvers, docs/solvers.md); ignored by the others
-    iterations: int = _field(10, _integer(minimum=1))  # pbd, xpbd, projective, vbd: sweeps per step
-    pbd_variant: str = _field("gauss-seidel", _choice(PBD_VARIANTS))  # pbd
-    relaxation: float = _field(1.0, _number(minimum=0))  # pbd jacobi: α in Σ Δ / (n_i + α)
-    pbd_stiffness: float = _field(1.0, _number(minimum=0, exclusive=True, maximum=1))  # pbd
-    strain_limit: float = _field(0.0, _number(minimum=0, maximum=1))  # pbd: ε, 0 = off
-    cfl: float = _field(0.5, _number(minimum=0, maximum=1))  # explicit: 0 = no automatic steps
-    chebyshev_rho: float = _field(0.9, _below_one)  # vbd: Chebyshev ρ in [0, 1), 0 = off
-    vbd_tolerance: float = _field(0.0, _number(minimum=0))  # vbd: stop at ‖∇E‖/‖Mg‖ ≤ this, 0 = off
+    iterations: int = setting(10, integer(minimum=1))  # pbd, xpbd, projective, vbd: sweeps per step
+    pbd_variant: str = setting("gauss-seidel", choice(PBD_VARIANTS))  # pbd
+    relaxation: float = setting(1.0, non_negative)  # pbd jacobi: α in Σ Δ / (n_i + α)
+    pbd_stiffness: float = setting(1.0, number(minimum=0, exclusive=True, maximum=1))  # pbd
+    strain_limit: float = setting(0.0, number(minimum=0, maximum=1))  # pbd: ε, 0 = off
+    cfl: float = setting(0.5, number(minimum=0, maximum=1))  # explicit: 0 = no automatic steps
+    chebyshev_rho: float = setting(0.9, number(minimum=0, below=1))  # vbd: ρ in [0, 1), 0 = off
+    vbd_tolerance: float = setting(0.0, non_negative)  # vbd: stop at ‖∇E‖/‖Mg‖ ≤ this, 0 = off
 
 
 @dataclass(frozen=True)
-class Time:
-    fps: float = _field(30.0, _number(minimum=0, exclusive=True))
-    frames: int = _field(120, _integer(minimum=0))
+class Time(Section):
+    fps: float = setting(30.0, positive)
+    frames: int = setting(120, integer(minimum=0))
 
 
 @dataclass(frozen=True)
-class Output:
-    dir: Path = _field(Path("out"), _path)
-    every: int = _field(1, _integer(minimum=1))
+class Output(Section):
+    dir: Path = setting(Path("out"), path)
+    every: int = setting(1, integer(minimum=1))
 
 
 @dataclass(frozen=True)
-class Config:
-    mesh: MeshSpec
-    material: Material = field(default_factory=Material)
-    scene: Scene = field(default_factory=Scene)
-    solver: Solver = field(default_factory=Solver)
-    time: Time = field(default_factory=Time)
-    output: Output = field(default_factory=Output)
+class Config(Section):
+    mesh: MeshSpec = section(MeshSpec)
+    material: Material = section(Material)
+    scene: Scene = section(Scene)
+    solver: Solver = section(Solver)
+    time: Time = section(Time)
+    output: Output = section(Output)
     source: Path | None = None  # the config file, for messages; None for a dict
+
+    def finish(self, given, key):
+        if "mesh" not in given:
+            raise InputError("missing section 'mesh' (give mesh.grid or mesh.ply)")
+        return self
 
     @property
     def step(self):
@@ -427,8 +401,7 @@ class Config:
         return 1.0 / (self.time.fps * self.solver.substeps)
 
 
-SECTIONS = {"mesh": MeshSpec, "material": Material, "scene": Scene,
-            "solver": Solver, "time": Time, "output": Output}
+SECTIONS = {f.name: f.default_factory for f in fields(Config) if f.name != "source"}
 
 
 # ---------------------------------------------------------------------------- loading
@@ -439,8 +412,8 @@ def load_config(config, *, overrides=None) -> Config:
 
     ``overrides``, applied before validation: a mapping of dotted keys → values
     (``{"material.stretch": 1e5}``; string values are read as YAML scalars), or a
-    list of ``"key=value"`` strings as ``--set`` gives them
-    (:func:`clothtool.config_tools.apply_overrides`, which also indexes lists).
+    list of ``"key=value"`` strings (:func:`clothtool.config_tools.apply_overrides`,
+    which also indexes lists).
     """
     if isinstance(config, Mapping):
         raw, source, base = _deep_copy(config), None, Path.cwd()
@@ -457,11 +430,13 @@ def load_config(config, *, overrides=None) -> Config:
         raw = apply_overrides(raw, list(overrides))
     label = str(source) if source is not None else "config"
     try:
-        cfg = _build_config(raw, base)
+        config = Config.build(raw, "")
+        given = {f"{name}.{key}" for name, body in raw.items() if isinstance(body, dict)
+                 for key in body}
+        methods.check_supported(config, given)
     except InputError as exc:
         raise InputError(f"{label}: {exc}") from None
-    return Config(**{f.name: getattr(cfg, f.name) for f in fields(cfg) if f.name != "source"},
-                  source=source)
+    return replace(resolve_paths(config, base), source=source)
 
 
 def _read_yaml(path: Path):
@@ -491,11 +466,13 @@ def _read_yaml(path: Path):
 
 
 def _apply_override(raw, dotted, value):
+    """Set the dotted key ``dotted`` of ``raw`` (an ``overrides`` mapping's entry)."""
     if isinstance(value, str):
         try:
             value = yaml.safe_load(value)
         except yaml.YAMLError:
-            raise InputError(f"--set {dotted}: cannot read value {value!r}") from None
+            raise InputError(f"cannot read value {value!r}", keyword="overrides",
+                             value=repr(dotted)) from None
     parts = dotted.split(".")
     node = raw
     for depth, part in enumerate(parts[:-1]):
@@ -503,128 +480,10 @@ def _apply_override(raw, dotted, value):
         if child is None:
             child = node[part] = {}
         if not isinstance(child, dict):
-            raise InputError(f"--set {dotted}: {'.'.join(parts[:depth + 1])} is not a section")
+            raise InputError(f"{'.'.join(parts[:depth + 1])} is not a section",
+                             keyword="overrides", value=repr(dotted))
         node = child
     node[parts[-1]] = value
-
-
-def _build_config(raw, base):
-    _check_keys(raw, SECTIONS, "")
-    if "mesh" not in raw:
-        raise InputError("missing section 'mesh' (give mesh.grid or mesh.ply)")
-    sections = {}
-    for name, cls in SECTIONS.items():
-        value = raw.get(name, {})
-        if value is None:
-            value = {}
-        if not isinstance(value, dict):
-            raise _type_error(name, "a mapping", value)
-        sections[name] = _build_section(cls, value, name, base)
-    config = Config(**sections)
-    given = {f"{name}.{key}" for name, section in raw.items() if isinstance(section, dict)
-             for key in section}
-    methods.check_supported(config, given)
-    return config
-
-
-def _build_section(cls, raw, prefix, base):
-    _check_keys(raw, {f.name for f in fields(cls)}, prefix)
-    kwargs = {}
-    for f in fields(cls):
-        if f.name not in raw:
-            continue
-        key = f"{prefix}.{f.name}"
-        value = raw[f.name]
-        if cls is MeshSpec and f.name == "grid":
-            if not isinstance(value, dict):
-                raise _type_error(key, "a mapping", value)
-            kwargs["grid"] = _build_section(GridSpec, value, key, base)
-        elif cls is Scene and f.name == "colliders":
-            kwargs["colliders"] = _build_colliders(value, key, base)
-        elif f.name == "motion" and cls in COLLIDER_KINDS.values():
-            if not isinstance(value, dict):
-                raise _type_error(key, "a mapping (rotate, translate)", value)
-            kwargs["motion"] = _build_motion(value, key)
-        elif cls is Scene and f.name == "self_collision":
-            if value is None:
-                continue
-            if not isinstance(value, dict):
-                raise _type_error(key, "a mapping (thickness, friction)", value)
-            kwargs["self_collision"] = _build_section(SelfCollision, value, key, base)
-        elif value is None and f.default is None:
-            continue
-        else:
-            kwargs[f.name] = f.metadata["check"](value, key)
-    section = cls(**kwargs)
-    if cls is MeshSpec:
-        if (section.grid is None) == (section.ply is None):
-            raise InputError("mesh needs exactly one of mesh.grid and mesh.ply")
-        if section.ply is not None:
-            section = MeshSpec(ply=base / section.ply, uv_scale=section.uv_scale)
-    if cls is Output:
-        section = Output(dir=base / section.dir, every=section.every)
-    if cls is MeshCollider:
-        given = [k for k in ("ply", "obj", "frames") if getattr(section, k) is not None]
-        if len(given) != 1:
-            raise InputError(f"{prefix} needs exactly one of ply, obj and frames")
-        if "fps" in raw and given[0] != "frames":
-            raise InputError(f"{prefix}.fps applies to frames only")
-        section = MeshCollider(**{**{f.name: getattr(section, f.name) for f in fields(section)},
-                                  given[0]: base / getattr(section, given[0])})
-    return section
-
-
-def _build_motion(raw, key):
-    _check_keys(raw, {"rotate", "translate"}, key)
-    parts = {}
-    for name, cls in (("rotate", Rotate), ("translate", Translate)):
-        if raw.get(name) is None:
-            continue
-        if not isinstance(raw[name], dict):
-            raise _type_error(f"{key}.{name}", "a mapping", raw[name])
-        parts[name] = _build_section(cls, raw[name], f"{key}.{name}", None)
-    if not parts:
-        raise InputError(f"{key} needs rotate and/or translate")
-    return Motion(**parts)
-
-
-def _build_colliders(value, key, base):
-    if value is None:
-        return ()
-    if not isinstance(value, list):
-        raise _type_error(key, "a list of colliders (- sphere: {...}, - plane: {...}, "
-                          "- capsule: {...}, - box: {...} or - mesh: {...})", value)
-    out = []
-    for i, item in enumerate(value):
-        here = f"{key}[{i}]"
-        if not isinstance(item, dict) or len(item) != 1:
-            raise _type_error(here, "one of sphere, plane, capsule, box or mesh: {...}", item)
-        (kind, body), = item.items()
-        if kind not in COLLIDER_KINDS:
-            raise InputError(f"{here}: unknown collider {kind!r}{_suggest(str(kind), COLLIDER_KINDS)}")
-        if not isinstance(body, dict):
-            raise _type_error(f"{here}.{kind}", "a mapping", body)
-        out.append(_build_section(COLLIDER_KINDS[kind], body, f"{here}.{kind}", base))
-    return tuple(out)
-
-
-def _check_keys(raw, valid, prefix):
-    for key in raw:
-        if key not in valid:
-            name = f"{prefix}.{key}" if prefix else str(key)
-            raise InputError(f"unknown key '{name}'{_suggest(str(key), valid)}")
-
-
-def _suggest(word, options):
-    close = difflib.get_close_matches(word, list(options), n=1, cutoff=0.5)
-    return f" (did you mean '{close[0]}'?)" if close else ""
-
-
-def _type_error(key, expected, value):
-    shown = repr(value)
-    if len(shown) > 40:
-        shown = shown[:37] + "..."
-    return InputError(f"{key} must be {expected}, got {shown}")
 
 
 def _deep_copy(value):
@@ -633,14 +492,3 @@ def _deep_copy(value):
     if isinstance(value, list):
         return [_deep_copy(v) for v in value]
     return value
-
-
-def as_dict(obj):
-    """A config (or section) as plain Python data, e.g. to record it beside the output."""
-    if is_dataclass(obj):
-        return {f.name: as_dict(getattr(obj, f.name)) for f in fields(obj)}
-    if isinstance(obj, tuple):
-        return [as_dict(v) for v in obj]
-    if isinstance(obj, Path):
-        return str(obj)
-    return obj

@@ -8,7 +8,7 @@ An elastic energy has a block :attr:`pattern` (which vertex pairs it couples),
   Baraff–Witkin stretch and shear in Kim's form (``membrane``) plus dihedral or
   quadratic bending (``bending``);
 - :class:`SpringElastic`: the spring network of ``mass-spring``
-  (``solvers.springs``), Σ ½k_e(‖x_i − x_j‖ − L_e)² with PSD-clamped spring Hessians.
+  (``springs``), Σ ½k_e(‖x_i − x_j‖ − L_e)² with PSD-clamped spring Hessians.
 """
 
 from functools import cached_property
@@ -18,7 +18,7 @@ import numpy as np
 from clothtool.sim.bending import dihedral_assemble, dihedral_total_energy, quadratic_gradient
 from clothtool.sim.blocksparse import BlockPattern
 from clothtool.sim.membrane import membrane_assemble, membrane_total_energy
-from clothtool.sim.solvers.springs import spring_assemble, spring_energy
+from clothtool.sim.springs import spring_assemble, spring_energy
 
 
 def fem_elastic_energy(model, x):

@@ -11,7 +11,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from clothtool.errors import InputError
-from clothtool.geometry import DEGENERATE_TOL, tangent_edge_matrices
+from clothtool.geometry import DEGENERATE_TOL, grid_triangles, grid_uv, tangent_edge_matrices
 
 PLANE_AXES = {"xy": (0, 1), "xz": (0, 2), "yz": (1, 2)}
 
@@ -26,31 +26,15 @@ class RestMesh:
 
 
 def grid_mesh(spec):
-    """An nx × ny grid, centred on the origin; vertex index j·nx + i, row ny−1 on top.
-
-    Quads are split along alternating diagonals (criss-cross by parity of i + j)
-    so that the grid has no preferred shear direction.
-    """
+    """An nx × ny grid, centred on the origin, in ``spec.plane``; vertex index j·nx + i, row
+    ny−1 on top, quads split criss-cross (:func:`clothtool.geometry.grid_triangles`)."""
     nx, ny = spec.nx, spec.ny
-    u = np.linspace(-spec.width / 2, spec.width / 2, nx)
-    v = np.linspace(-spec.height / 2, spec.height / 2, ny)
-    uu, vv = np.meshgrid(u, v)  # (ny, nx): row j, column i
-    uv = np.stack([uu.ravel(), vv.ravel()], axis=1)
+    uv = grid_uv(nx, ny, spec.width, spec.height)
     a, b = PLANE_AXES[spec.plane]
     positions = np.zeros((nx * ny, 3))
     positions[:, a] = uv[:, 0]
     positions[:, b] = uv[:, 1]
-
-    i, j = np.meshgrid(np.arange(nx - 1), np.arange(ny - 1))
-    i, j = i.ravel(), j.ravel()
-    v00, v10 = j * nx + i, j * nx + i + 1
-    v01, v11 = v00 + nx, v10 + nx
-    even = (i + j) % 2 == 0
-    # even: diagonal v00–v11; odd: diagonal v10–v01; both triangles counter-clockwise
-    t1 = np.where(even[:, None], np.stack([v00, v10, v11], 1), np.stack([v00, v10, v01], 1))
-    t2 = np.where(even[:, None], np.stack([v00, v11, v01], 1), np.stack([v10, v11, v01], 1))
-    faces = np.concatenate([t1, t2]).astype(np.int64)
-    return RestMesh(positions, faces, uv, (nx, ny), _embed(uv))
+    return RestMesh(positions, grid_triangles(nx, ny), uv, (nx, ny), _embed(uv))
 
 
 def ply_mesh(path, uv_scale):

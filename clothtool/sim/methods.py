@@ -75,13 +75,12 @@ def requested_features(config, given=()):
     if config.solver.integrator == "bdf2" and "solver.integrator" in given:
         out.append((BDF2, "solver.integrator: bdf2"))
     for i, collider in enumerate(config.scene.colliders):
-        kind = type(collider).__name__.lower().replace("meshcollider", "mesh")
-        if kind not in ("sphere", "plane"):
-            out.append((CONTACT, f"scene.colliders[{i}].{kind}"))
+        if collider.barrier:
+            out.append((CONTACT, f"scene.colliders[{i}].{collider.kind}"))
         if collider.motion is not None:
-            out.append((CONTACT, f"scene.colliders[{i}].{kind}.motion"))
+            out.append((CONTACT, f"scene.colliders[{i}].{collider.kind}.motion"))
         if collider.friction > 0:
-            out.append((FRICTION, f"scene.colliders[{i}].{kind}.friction"))
+            out.append((FRICTION, f"scene.colliders[{i}].{collider.kind}.friction"))
     if config.scene.self_collision is not None:
         out.append((CONTACT, "scene.self_collision"))
     for i, pin in enumerate(config.scene.pins):

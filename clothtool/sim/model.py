@@ -91,8 +91,8 @@ class Model:
     @cached_property
     def springs(self):
         """The spring network of ``mass-spring``, ``pbd``, ``xpbd`` and ``projective``
-        (:func:`~clothtool.sim.solvers.springs.build_springs`), built once."""
-        from clothtool.sim.solvers.springs import build_springs
+        (:func:`~clothtool.sim.springs.build_springs`), built once."""
+        from clothtool.sim.springs import build_springs
 
         return build_springs(self)
 

@@ -4,14 +4,14 @@
   frame, written once, as it is read (frames a ``--pairs`` slice does not read stay NaN);
   the XDMF's geometry.
 - ``/summary``: :mod:`clothtool.analysis.output.summary`.
-- ``/vertex/<field>_avg`` (P, N, …): :mod:`clothtool.analysis.output.vertex_average`, if asked for.
+- ``/vertex/<field>_avg`` (P, N, …): :mod:`clothtool.vertex_average`, if asked for.
 """
 
 import numpy as np
 
 from clothtool.io.h5 import create_pair_dataset
 from clothtool.analysis.output.summary import SummaryWriter
-from clothtool.analysis.output.vertex_average import SUFFIX, VertexAverager, rest_areas
+from clothtool.vertex_average import SUFFIX, VertexAverager, rest_areas
 
 
 class PairExtras:
@@ -28,7 +28,6 @@ class PairExtras:
                                              store, compression, fillvalue=np.nan)
         self.stored = np.zeros(n_frames, bool)
         self.table = SummaryWriter(h5, pairs, offset, tets=tets)
-        self.ratio = "volume_ratio" if tets else "area_ratio"
         self.averaged = averaged
         self.averager = VertexAverager(faces, n_vertices) if averaged else None
         self.shapes = {}
@@ -50,13 +49,16 @@ class PairExtras:
             self.positions[index] = x
             self.stored[index] = True
 
+    def summarise(self, p, buffers):
+        """The summary row of pair ``p`` from the fields in its ``buffers``."""
+        self.table.add(p, buffers)
+
     def pair(self, p, buffers, dinv, frames=()):
-        """Summary row of pair ``p`` and its vertex averages (into ``buffers``), from the face
-        fields in ``buffers`` and the reference's D_r⁻¹ (for the rest areas); ``frames``:
-        (index, positions) of the pair's frames, stored if not yet (:meth:`frame`)."""
+        """The vertex averages of pair ``p`` (into ``buffers``), from the face fields in
+        ``buffers`` and the reference's D_r⁻¹ (for the rest areas); ``frames``: (index,
+        positions) of the pair's frames, stored if not yet (:meth:`frame`)."""
         for index, x in frames:
             self.frame(index, x)
-        self.table.add(p, buffers["stretch"], buffers[self.ratio], buffers["flags"])
         if self.averaged:
             areas = rest_areas(dinv)
             for name in self.averaged:

@@ -1,14 +1,15 @@
 """The per-pair summary stored as ``/summary`` at analysis time and shown by ``clothtool info``
-(read back by :func:`clothtool.io.result.read_summary`).
+(its layout and reader: :mod:`clothtool.io.result`).
 
 ``/summary`` is a group of (P,) datasets, one per column, in the order of its ``columns``
-attribute (:data:`COLUMNS`):
+attribute (:data:`~clothtool.io.result.COLUMNS`):
 
 - ``pair``, ``reference``, ``deformed``: the global pair index and its frames (as ``/pairs``)
 - ``lambda1_p5 … lambda1_p95``, ``lambda2_p5 …``, ``area_ratio_p5 …``: 5th/50th/95th
   percentiles of the principal stretches λ1 ≥ λ2 and the area ratio λ1λ2 over the pair's
-  triangles (flagged triangles, whose values are NaN, excluded; NaN if none is left); the
-  quantities come from the registry's ``summary`` entries (:mod:`clothtool.analysis.fields`).
+  triangles (flagged triangles, whose values are NaN, excluded; NaN if none is left). The
+  quantities are the registry's ``summary`` entries (:mod:`clothtool.fields`): quantity k of
+  a float field summarises its k-th component, in registry order.
   Results written before these names call the area-ratio columns ``J_p5 …``; the old names
   stay readable as links (:data:`ALIASES`).
 - ``compressed``: fraction of those triangles with λ2 < 1 − TOL, in compression along
@@ -26,50 +27,51 @@ the area ratio's, ``compressed`` counting λ3 < 1 − TOL, and the count ``inver
 
 import numpy as np
 
-from clothtool.analysis.fields import FIELDS_2D, FIELDS_TET
-from clothtool.io.result import SUMMARY_ALIASES as ALIASES
+from clothtool.fields import FIELDS_2D, FIELDS_TET
+from clothtool.io.result import (COLUMNS, FLAG_BITS, PERCENTILES, TET_COLUMNS, TET_FLAG_BITS,
+                                 TET_INT_COLUMNS, INT_COLUMNS, TOL, add_aliases)
 
-PERCENTILES = (5, 50, 95)
-TOL = 1e-5
-QUANTITIES = tuple(q for f in FIELDS_2D if not f.integer for q in f.summary)  # λ1, λ2, area
-FLAG_BITS = (("reference_degenerate", 1), ("deformed_degenerate", 2), ("nonfinite", 4),
-             ("uv_flipped", 8))
-COLUMNS = ("pair", "reference", "deformed",
-           *(f"{q}_p{p}" for q in QUANTITIES for p in PERCENTILES),
-           "compressed", "stretched", "flagged", *(name for name, _ in FLAG_BITS))
-INT_COLUMNS = {"pair", "reference", "deformed", "flagged", *(name for name, _ in FLAG_BITS)}
-TET_QUANTITIES = tuple(q for f in FIELDS_TET if not f.integer for q in f.summary)  # λ1–λ3, J
-TET_FLAG_BITS = (("reference_degenerate", 1), ("deformed_degenerate", 2), ("nonfinite", 4),
-                 ("inverted", 16))
-TET_COLUMNS = ("pair", "reference", "deformed",
-               *(f"{q}_p{p}" for q in TET_QUANTITIES for p in PERCENTILES),
-               "compressed", "stretched", "flagged", *(name for name, _ in TET_FLAG_BITS))
-TET_INT_COLUMNS = {"pair", "reference", "deformed", "flagged", *(n for n, _ in TET_FLAG_BITS)}
+STRETCH = "stretch"  # the field whose first and last components count as stretched/compressed
 
 
-def pair_summary(stretch, area_ratio, flags, tets=False):
-    """The float and count columns of one pair (everything but pair/reference/deformed)
-    from its (M, 2) stretches, (M,) area ratios and (M,) flags; with ``tets``, (M, 3)
-    stretches and volume ratios."""
-    stretch, area_ratio = np.asarray(stretch), np.asarray(area_ratio)
-    if np.isfinite(stretch.sum()):  # the common case, checked with one cheap pass: views, no copies
-        lam, j = [stretch[:, k] for k in range(stretch.shape[1])], area_ratio
-    else:
-        valid = np.isfinite(stretch).all(axis=1)
-        lam, j = [stretch[valid, k] for k in range(stretch.shape[1])], area_ratio[valid]
+def summarised(registry_fields):
+    """(float fields, integer fields) of ``registry_fields`` that declare summary quantities."""
+    return (tuple(f for f in registry_fields if f.summary and not f.integer),
+            tuple(f for f in registry_fields if f.summary and f.integer))
+
+
+def pair_summary(values, registry_fields=FIELDS_2D, flag_bits=FLAG_BITS):
+    """The float and count columns of one pair (everything but pair/reference/deformed).
+
+    ``values``: name → (M, …) array of each field of ``registry_fields`` that declares summary
+    quantities (quantity k of a float field is its k-th component, flattened); the integer
+    one is the flags, counted per bit of ``flag_bits``. Elements that are not finite in every
+    summarised float field (the flagged ones) are left out of the percentiles and fractions.
+    """
     from clothtool.analysis.output.percentiles import percentiles  # numba: not for `clothtool info`
 
+    floats, ints = summarised(registry_fields)
+    arrays = {f.name: np.asarray(values[f.name]).reshape(len(values[f.name]), -1) for f in floats}
+    # the common case is checked with one cheap pass per field: views, no copies
+    if not all(np.isfinite(a.sum()) for a in arrays.values()):
+        valid = np.logical_and.reduce([np.isfinite(a).all(axis=1) for a in arrays.values()])
+        arrays = {name: a[valid] for name, a in arrays.items()}
     row = {}
     qs = np.array(PERCENTILES, np.float64)
-    for name, q in zip(TET_QUANTITIES if tets else QUANTITIES, [*lam, j]):
-        values = percentiles(np.ascontiguousarray(q), qs)  # = np.percentile, 4× faster
-        row.update({f"{name}_p{p}": float(v) for p, v in zip(PERCENTILES, values)})
-    n = len(j)  # unflagged elements
-    row["compressed"] = float(np.count_nonzero(lam[-1] < 1 - TOL)) / n if n else np.nan
-    row["stretched"] = float(np.count_nonzero(lam[0] > 1 + TOL)) / n if n else np.nan
-    row["flagged"] = int(np.count_nonzero(flags))
-    for name, bit in TET_FLAG_BITS if tets else FLAG_BITS:
-        row[name] = int(np.count_nonzero(np.asarray(flags) & bit))
+    for f in floats:
+        for k, name in enumerate(f.summary):
+            column = np.ascontiguousarray(arrays[f.name][:, k])
+            values_k = percentiles(column, qs)  # = np.percentile, 4× faster
+            row.update({f"{name}_p{p}": float(v) for p, v in zip(PERCENTILES, values_k)})
+    lam = arrays[STRETCH]
+    n = len(lam)  # unflagged elements
+    row["compressed"] = float(np.count_nonzero(lam[:, -1] < 1 - TOL)) / n if n else np.nan
+    row["stretched"] = float(np.count_nonzero(lam[:, 0] > 1 + TOL)) / n if n else np.nan
+    for f in ints:
+        flags = np.asarray(values[f.name])
+        row["flagged"] = int(np.count_nonzero(flags))
+        for name, bit in flag_bits:
+            row[name] = int(np.count_nonzero(flags & bit))
     return row
 
 
@@ -78,6 +80,7 @@ class SummaryWriter:
 
     def __init__(self, h5, pairs, offset, tets=False):
         self.tets = tets
+        self.fields, self.flag_bits = (FIELDS_TET, TET_FLAG_BITS) if tets else (FIELDS_2D, FLAG_BITS)
         self.columns = TET_COLUMNS if tets else COLUMNS
         ints = TET_INT_COLUMNS if tets else INT_COLUMNS
         group = h5.create_group("summary")
@@ -91,8 +94,9 @@ class SummaryWriter:
         self.data["deformed"][:] = pairs[:, 1]
         self.group = group
 
-    def add(self, p, stretch, area_ratio, flags):
-        for name, value in pair_summary(stretch, area_ratio, flags, self.tets).items():
+    def add(self, p, buffers):
+        """The row of pair ``p`` from its buffers (name → array of each summarised field)."""
+        for name, value in pair_summary(buffers, self.fields, self.flag_bits).items():
             self.data[name][p] = value
 
     def close(self):
@@ -101,13 +105,3 @@ class SummaryWriter:
             self.group.create_dataset(name, data=self.data[name])
         if not self.tets:
             add_aliases(self.group)
-
-
-def add_aliases(group):
-    """Soft links ``J_p…`` → ``area_ratio_p…`` in a ``/summary`` group, so that scripts that
-    read the old column names keep working."""
-    import h5py
-
-    for old, new in ALIASES.items():
-        if new in group and old not in group:
-            group[old] = h5py.SoftLink(f"{group.name}/{new}")

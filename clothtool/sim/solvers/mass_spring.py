@@ -2,7 +2,7 @@
 
 The incremental potential is the implicit solver's (see
 :mod:`clothtool.sim.newton`) with the spring energy of
-:mod:`clothtool.sim.solvers.springs` in place of the finite-element membrane
+:mod:`clothtool.sim.springs` in place of the finite-element membrane
 and dihedral bending:
 
     E(x) = 1/(2h²)‖x − x_n − h v_n‖²_M − Σ m g·x + Σ_e ½k_e(‖x_i − x_j‖ − L_e)² + ½(x − x_n)ᵀD(x − x_n)

@@ -34,7 +34,7 @@ import numpy as np
 
 from clothtool.sim.energy import SpringElastic
 from clothtool.sim.integrator import Integrator, StepReport
-from clothtool.sim.solvers.springs import (pbd_gauss_seidel, pbd_jacobi,
+from clothtool.sim.solvers.constraints import (pbd_gauss_seidel, pbd_jacobi,
                                            strain_limit_pass)
 
 

@@ -30,7 +30,7 @@ from scipy.sparse.linalg import splu
 
 from clothtool.sim.energy import SpringElastic
 from clothtool.sim.integrator import Integrator, StepReport
-from clothtool.sim.solvers.springs import pd_local_rhs
+from clothtool.sim.solvers.constraints import pd_local_rhs
 
 
 class ProjectiveDynamics(Integrator):

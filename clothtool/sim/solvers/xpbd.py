@@ -24,7 +24,7 @@ import numpy as np
 
 from clothtool.sim.energy import SpringElastic
 from clothtool.sim.integrator import Integrator, StepReport
-from clothtool.sim.solvers.springs import xpbd_sweep
+from clothtool.sim.solvers.constraints import xpbd_sweep
 
 
 class ExtendedPositionBased(Integrator):

@@ -27,8 +27,8 @@ import numpy as np
 
 from clothtool.errors import InputError
 from clothtool.io.atomic import atomic_path
+from clothtool.io.result import VIEWS
 
-VIEWS = "xdmf"  # the group of per-pair views (virtual datasets) that the XDMF addresses
 TOPOLOGIES = (("mesh/faces", "face", "Triangle"), ("mesh/tets", "tet", "Tetrahedron"))
 POINT_GROUP = "vertex"
 CENTERS = tuple((group, "Cell") for _, group, _ in TOPOLOGIES) + ((POINT_GROUP, "Node"),)
@@ -132,8 +132,8 @@ def _fields(h5, n_pairs, counts):
 def _attribute_keys(h5):
     """(dataset path, XDMF center) of the face and vertex datasets in ``h5``: the registry's
     fields and their vertex averages in registry order, then any others."""
-    from clothtool.analysis.fields import REGISTRY
-    from clothtool.analysis.output.vertex_average import SUFFIX
+    from clothtool.fields import REGISTRY
+    from clothtool.vertex_average import SUFFIX
 
     centers = dict(CENTERS)
     known = [f.key for f in REGISTRY] + [f"vertex/{f.name}{SUFFIX}" for f in REGISTRY if f.averageable]
@@ -173,7 +173,7 @@ def xdmf_text(h5, h5_name):
                    if view_name(p, what) not in h5]
         if missing:
             raise InputError(f"{h5.filename}: no /{missing[0]}; write the XDMF with the "
-                             "result open for writing (clothtool.analysis.output.xdmf.write_xdmf)")
+                             "result open for writing (clothtool.io.xdmf.write_xdmf)")
 
     topologies = {group: f'<Topology TopologyType="{kind}" NumberOfElements="{topology.shape[0]}">\n'
                          f'  {_item(h5_name, topology.name[1:], topology.shape, topology.dtype)}\n'

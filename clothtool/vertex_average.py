@@ -9,7 +9,7 @@ a vertex with no such triangle gets NaN. Tensors are averaged component by compo
 
 import numpy as np
 
-from clothtool.analysis.fields import AVERAGEABLE
+from clothtool.fields import AVERAGEABLE
 from clothtool.errors import InputError
 
 SUFFIX = "_avg"  # /vertex/<field>_avg
