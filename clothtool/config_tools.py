@@ -98,6 +98,16 @@ _ValueLoader.add_implicit_resolver(
     list("-+0123456789."))
 
 
+def parse_value(raw, label):
+    """A value as YAML (``2e4`` a float, ``[0, -9.81, 0]`` a list, ``xz`` a string);
+    ``label`` starts the message of an :class:`InputError`."""
+    try:
+        return yaml.load(raw, Loader=_ValueLoader)
+    except yaml.YAMLError as exc:
+        problem = getattr(exc, "problem", None) or "not valid YAML"
+        raise InputError(f"{label}: value {raw!r} is {problem}") from None
+
+
 def parse_assignment(text):
     """'a.b.c=value' → (['a', 'b', 'c'], parsed value)."""
     key, sep, raw = text.partition("=")
@@ -106,12 +116,7 @@ def parse_assignment(text):
         raise InputError(f"--set {text!r}: expected dotted.key=value, e.g. material.stretch=2e4")
     if not raw.strip():
         raise InputError(f"--set {text!r}: no value after '='")
-    try:
-        value = yaml.load(raw, Loader=_ValueLoader)
-    except yaml.YAMLError as exc:
-        problem = getattr(exc, "problem", None) or "not valid YAML"
-        raise InputError(f"--set {text!r}: value {raw!r} is {problem}") from None
-    return [p.strip() for p in parts], value
+    return [p.strip() for p in parts], parse_value(raw, f"--set {text!r}")
 
 
 def apply_overrides(config, assignments):
@@ -120,25 +125,32 @@ def apply_overrides(config, assignments):
     result = copy.deepcopy(config) if config is not None else {}
     for text in assignments:
         parts, value = parse_assignment(text)
-        node = result
-        for depth, part in enumerate(parts):
-            last = depth == len(parts) - 1
-            where = ".".join(parts[:depth]) or "the config"
-            if isinstance(node, dict):
-                if last:
-                    node[part] = value
-                else:
-                    if node.get(part) is None:
-                        node[part] = {}
-                    node = node[part]
-            elif isinstance(node, list):
-                if not (part.lstrip("-").isdigit() and -len(node) <= int(part) < len(node)):
-                    raise InputError(f"--set {text!r}: {where} is a list of {len(node)}; "
-                                     f"{part!r} is not an index into it")
-                if last:
-                    node[int(part)] = value
-                else:
-                    node = node[int(part)]
-            else:
-                raise InputError(f"--set {text!r}: {where} is {node!r}, not a mapping")
+        assign(result, parts, value, f"--set {text!r}")
     return result
+
+
+def assign(config, parts, value, label):
+    """Set the entry of the nested mapping ``config`` at the key path ``parts`` (mappings
+    created as needed, integer parts index lists) to ``value``, in place; ``label`` starts
+    the message of an :class:`InputError` when a part does not fit."""
+    node = config
+    for depth, part in enumerate(parts):
+        last = depth == len(parts) - 1
+        where = ".".join(parts[:depth]) or "the config"
+        if isinstance(node, dict):
+            if last:
+                node[part] = value
+            else:
+                if node.get(part) is None:
+                    node[part] = {}
+                node = node[part]
+        elif isinstance(node, list):
+            if not (part.lstrip("-").isdigit() and -len(node) <= int(part) < len(node)):
+                raise InputError(f"{label}: {where} is a list of {len(node)}; "
+                                 f"{part!r} is not an index into it")
+            if last:
+                node[int(part)] = value
+            else:
+                node = node[int(part)]
+        else:
+            raise InputError(f"{label}: {where} is {node!r}, not a mapping")

@@ -1,0 +1,128 @@
+"""Runs on this machine: ``jobs`` worker processes, each importing clothtool (numpy,
+numba and the compiled-kernel cache) once and then running one run after another as
+the parent hands them out, so a run costs its simulation and not a Python start-up.
+
+Only the parent writes the manifest; a worker writes its runs' ``status.json``. A
+worker that dies (killed, out of memory) fails its run with a message naming the
+signal or exit code, and another worker takes its place. Ctrl-C or SIGTERM to the
+parent stops the workers with SIGTERM (each run then cleans up as ``clothtool
+simulate`` does and is left not done) before the parent re-raises.
+"""
+
+import multiprocessing
+import os
+import signal
+import sys
+from multiprocessing.connection import wait
+
+from clothtool import interrupt
+
+
+def _worker(conn, root, analysis):
+    """A pool worker's main loop: receive a run id, run it, send back (run, status)."""
+    interrupt.install()
+    from clothtool.sweeps.run import run_one
+
+    try:
+        while True:
+            run = conn.recv()
+            if run is None:
+                return
+            conn.send((run, run_one(root, run, analysis)))
+    except (KeyboardInterrupt, EOFError, BrokenPipeError):
+        os._exit(130)  # the parent is stopping the sweep; nothing of this run was published
+
+
+def _context():
+    methods = multiprocessing.get_all_start_methods()
+    return multiprocessing.get_context("fork" if sys.platform.startswith("linux") and "fork"
+                                       in methods else "spawn")
+
+
+class _Worker:
+    def __init__(self, ctx, root, analysis):
+        self.conn, child = ctx.Pipe()
+        self.process = ctx.Process(target=_worker, args=(child, root, analysis), daemon=True)
+        self.process.start()
+        child.close()
+        self.run = None  # the run it is busy with
+
+
+def run_pool(root, runs, analysis, jobs, on_done):
+    """Run ``runs`` (ids) of the sweep in ``root`` on ``jobs`` processes; ``on_done(run,
+    status)`` is called in the parent as each ends. One job runs in this process."""
+    if jobs <= 1:
+        from clothtool.sweeps.run import run_one
+
+        for run in runs:
+            on_done(run, run_one(root, run, analysis))
+        return
+    ctx = _context()
+    pending = list(reversed(runs))
+    workers = []
+    # one thread per worker: the workers already fill the cores (unless the user chose)
+    saved = os.environ.get("NUMBA_NUM_THREADS")
+    os.environ.setdefault("NUMBA_NUM_THREADS", "1")
+    try:
+        for _ in range(min(jobs, len(runs))):
+            workers.append(_Worker(ctx, root, analysis))
+        for w in workers:
+            _hand_out(w, pending)
+        while any(w.run is not None for w in workers):
+            busy = [w for w in workers if w.run is not None]
+            ready = wait([w.conn for w in busy] + [w.process.sentinel for w in busy])
+            for w in busy:
+                if w.conn in ready and w.conn.poll():
+                    run, status = w.conn.recv()
+                    w.run = None
+                    on_done(run, status)
+                    _hand_out(w, pending)
+                elif w.process.sentinel in ready and not w.conn.poll():
+                    run, w.run = w.run, None
+                    w.process.join()
+                    on_done(run, _died(root, run, w.process.exitcode))
+                    workers.remove(w)
+                    if pending:
+                        fresh = _Worker(ctx, root, analysis)
+                        workers.append(fresh)
+                        _hand_out(fresh, pending)
+        for w in workers:
+            w.conn.send(None)
+        for w in workers:
+            w.process.join()
+    except BaseException:
+        _stop(workers)
+        raise
+    finally:
+        if saved is None:
+            os.environ.pop("NUMBA_NUM_THREADS", None)
+
+
+def _hand_out(worker, pending):
+    if pending:
+        worker.run = pending.pop()
+        worker.conn.send(worker.run)
+
+
+def _died(root, run, exitcode):
+    from clothtool.sweeps.layout import SweepFolder
+
+    how = (f"killed by signal {signal.Signals(-exitcode).name}" if exitcode is not None
+           and exitcode < 0 else f"exit code {exitcode}")
+    status = {"status": "failed", "exit_code": 1,
+              "error": f"the worker process running this run died ({how})"}
+    SweepFolder(root).write_status(run, status)
+    return status
+
+
+def _stop(workers):
+    """SIGTERM every worker (each cleans up its run), then wait; SIGKILL what lingers."""
+    with interrupt.deferred():
+        for w in workers:
+            if w.process.is_alive():
+                w.process.terminate()
+        for w in workers:
+            w.process.join(timeout=10)
+            if w.process.is_alive():
+                w.process.kill()
+                w.process.join()
