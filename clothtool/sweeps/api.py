@@ -140,19 +140,21 @@ def plan(base, *, grid=None, zipped=None, random=None, ranges=None, seed=None, s
               **{k: "ranges" for k in spec.parse_ranges(ranges)}}
     ids = run_ids(len(rows))
 
-    def load(params, keyword=None, shown=None):
+    def load(params, where, keyword=None):
+        """(raw, Config) of the base with ``params``; an error starts with ``where`` (or is
+        about ``keyword``, with ``where`` as its value)."""
         config = copy.deepcopy(raw)
-        for key, value in params.items():
-            assign(config, key.split("."), value, f"{key}={format_value(value)}")
         try:
+            for key, value in params.items():
+                assign(config, key.split("."), value, key)
             return config, load_config(config, base_dir=base.parent.resolve())
         except InputError as exc:
             detail = exc.format().removeprefix("config: ")
             if keyword is None:
-                raise InputError(f"{base}: {detail}") from None
-            raise InputError(detail, keyword=keyword, value=shown) from None
+                raise InputError(f"{where}: {detail}") from None
+            raise InputError(detail, keyword=keyword, value=where) from None
 
-    load({})  # the base itself
+    load({}, str(base))  # the base itself
     # each swept value alone (a range: its ends), so that an error names the option and key
     for key, kind in origin.items():
         if kind == "ranges":
@@ -161,16 +163,14 @@ def plan(base, *, grid=None, zipped=None, random=None, ranges=None, seed=None, s
         else:
             values = spec.parse_lists(grid if kind == "grid" else zipped, kind)[key]
         for value in values:
-            load({key: value}, kind, f"{key}={format_value(value)}")
+            load({key: value}, f"{key}={format_value(value)}", kind)
     configs = {}
     for run, params in zip(ids, rows):
-        try:
-            config, checked = load(params)
-        except InputError as exc:
-            shown = ", ".join(f"{k}={format_value(v)}" for k, v in params.items())
-            raise InputError(f"{run} ({shown}): {exc.format()}") from None
+        shown = ", ".join(f"{k}={format_value(v)}" for k, v in params.items())
+        config, checked = load(params, f"{run} ({shown})")
         resolved = _with_resolved_paths(config, checked)
-        resolved.setdefault("output", {})
+        if not isinstance(resolved.get("output"), dict):
+            resolved["output"] = {}
         resolved["output"]["dir"] = "."
         configs[run] = resolved
     record = {"format": FORMAT, "base": str(base.resolve()), "base_config": raw,

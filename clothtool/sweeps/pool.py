@@ -12,14 +12,15 @@ simulate`` does and is left not done) before the parent re-raises.
 import multiprocessing
 import os
 import signal
-import sys
 from multiprocessing.connection import wait
 
 from clothtool import interrupt
 
 
-def _worker(conn, root, analysis):
+def _worker(conn, root, analysis, threads):
     """A pool worker's main loop: receive a run id, run it, send back (run, status)."""
+    if threads is not None:  # before numba is imported
+        os.environ["NUMBA_NUM_THREADS"] = threads
     interrupt.install()
     from clothtool.sweeps.run import run_one
 
@@ -30,19 +31,22 @@ def _worker(conn, root, analysis):
                 return
             conn.send((run, run_one(root, run, analysis)))
     except (KeyboardInterrupt, EOFError, BrokenPipeError):
-        os._exit(130)  # the parent is stopping the sweep; nothing of this run was published
+        return  # the parent is stopping the sweep; nothing of this run was published
 
 
 def _context():
+    """Workers start from a fresh interpreter (forkserver; spawn where there is none), not
+    as forks of the caller: a notebook that already ran numba's thread pool cannot fork
+    safely."""
     methods = multiprocessing.get_all_start_methods()
-    return multiprocessing.get_context("fork" if sys.platform.startswith("linux") and "fork"
-                                       in methods else "spawn")
+    return multiprocessing.get_context("forkserver" if "forkserver" in methods else "spawn")
 
 
 class _Worker:
-    def __init__(self, ctx, root, analysis):
+    def __init__(self, ctx, root, analysis, threads):
         self.conn, child = ctx.Pipe()
-        self.process = ctx.Process(target=_worker, args=(child, root, analysis), daemon=True)
+        self.process = ctx.Process(target=_worker, args=(child, root, analysis, threads),
+                                   daemon=True)
         self.process.start()
         child.close()
         self.run = None  # the run it is busy with
@@ -60,12 +64,11 @@ def run_pool(root, runs, analysis, jobs, on_done):
     ctx = _context()
     pending = list(reversed(runs))
     workers = []
-    # one thread per worker: the workers already fill the cores (unless the user chose)
-    saved = os.environ.get("NUMBA_NUM_THREADS")
-    os.environ.setdefault("NUMBA_NUM_THREADS", "1")
+    # one numba thread per worker: the workers already fill the cores (unless the user chose)
+    threads = None if "NUMBA_NUM_THREADS" in os.environ else "1"
     try:
         for _ in range(min(jobs, len(runs))):
-            workers.append(_Worker(ctx, root, analysis))
+            workers.append(_Worker(ctx, root, analysis, threads))
         for w in workers:
             _hand_out(w, pending)
         while any(w.run is not None for w in workers):
@@ -83,7 +86,7 @@ def run_pool(root, runs, analysis, jobs, on_done):
                     on_done(run, _died(root, run, w.process.exitcode))
                     workers.remove(w)
                     if pending:
-                        fresh = _Worker(ctx, root, analysis)
+                        fresh = _Worker(ctx, root, analysis, threads)
                         workers.append(fresh)
                         _hand_out(fresh, pending)
         for w in workers:
@@ -93,9 +96,6 @@ def run_pool(root, runs, analysis, jobs, on_done):
     except BaseException:
         _stop(workers)
         raise
-    finally:
-        if saved is None:
-            os.environ.pop("NUMBA_NUM_THREADS", None)
 
 
 def _hand_out(worker, pending):

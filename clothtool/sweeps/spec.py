@@ -122,7 +122,8 @@ def sample(ranges, count, seed):
         row = {}
         for key, (lo, hi, scale) in ranges.items():
             if scale == "log":
-                row[key] = float(math.exp(rng.uniform(math.log(lo), math.log(hi))))
+                value = math.exp(rng.uniform(math.log(lo), math.log(hi)))
+                row[key] = min(max(value, lo), hi)  # exp(log(hi)) may round past hi
             elif scale == "int":
                 row[key] = int(rng.integers(int(lo), int(hi), endpoint=True))
             else:
