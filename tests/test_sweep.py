@@ -353,3 +353,59 @@ def test_report_errors(tmp_path):
     assert result.exit_code == 2 and "--against material.bend: not a parameter" in result.output
     result = runner.invoke(main, ["sweep-report", str(tmp_path)])
     assert result.exit_code == 2 and "not a sweep folder" in result.output
+
+
+def _descendants(pid):
+    """Process ids below ``pid`` (Linux /proc)."""
+    children = {}
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            fields = stat.read_text().rsplit(")", 1)[1].split()
+        except OSError:
+            continue
+        children.setdefault(int(fields[1]), []).append(int(stat.parent.name))
+    out, todo = [], [pid]
+    while todo:
+        for child in children.get(todo.pop(), []):
+            out.append(child)
+            todo.append(child)
+    return out
+
+
+def _open_files(pid):
+    try:
+        return [os.path.realpath(f"/proc/{pid}/fd/{fd}") for fd in os.listdir(f"/proc/{pid}/fd")]
+    except OSError:
+        return []
+
+
+@pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="needs Linux /proc")
+def test_a_worker_that_dies_fails_its_run_only(tmp_path):
+    """SIGKILL to a pool worker in the middle of a run: that run fails naming the signal,
+    a new worker takes the rest, every other run is done."""
+    base = write_base(tmp_path, BASE.replace("frames: 6", "frames: 400"))
+    runs = tmp_path / "runs"
+    proc = subprocess.Popen([*CLOTHTOOL, "sweep", str(base), "-o", str(runs), "-j", "2",
+                             "--grid", "material.stretch=1e3,2e3,3e3,4e3"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    try:
+        deadline = time.monotonic() + 300
+        while not list(runs.glob("run_0000/frame_00010.ply")):
+            assert proc.poll() is None, proc.communicate()
+            assert time.monotonic() < deadline
+            time.sleep(0.01)
+        # the worker running run_0000: the one with a file of its folder open (stats.csv)
+        victim = next(pid for pid in _descendants(proc.pid)
+                      if any(str(runs / "run_0000") in path for path in _open_files(pid)))
+        os.kill(victim, signal.SIGKILL)
+        stdout, stderr = proc.communicate(timeout=600)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    assert proc.returncode == 3, stderr
+    manifest = {r["run"]: r for r in read_csv(runs / "manifest.csv")}
+    assert manifest["run_0000"]["status"] == "failed"
+    assert manifest["run_0000"]["error"] == \
+        "the worker process running this run died (killed by signal SIGKILL)"
+    assert [manifest[f"run_000{i}"]["status"] for i in (1, 2, 3)] == ["done"] * 3

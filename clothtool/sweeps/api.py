@@ -3,6 +3,7 @@ process pool) or write a Slurm job array for them; resume what is not done."""
 
 import copy
 import json
+import shlex
 import time
 from dataclasses import dataclass, field, fields, is_dataclass
 from pathlib import Path
@@ -28,11 +29,12 @@ class SweepResult:
     script: Path | None = None
     tasks: int = 0
     sbatch: str | None = None
+    todo: int = 0  # runs the Slurm script runs
 
     def describe(self):
         if self.script is not None:
-            return (f"wrote {self.script}: {self.runs - self.done - len(self.failed)} of "
-                    f"{self.runs} runs to do in {self.tasks} array tasks; submit with\n"
+            return (f"wrote {self.script}: {self.todo} of {self.runs} runs to do in "
+                    f"{self.tasks} array tasks; submit with\n"
                     f"  {self.sbatch}\nthen, once all tasks have ended: clothtool sweep-report "
                     f"{self.output_dir}")
         lines = [f"{self.output_dir}/: {self.runs} runs, {self.done} done, {len(self.failed)} failed"
@@ -92,14 +94,12 @@ def sweep(base, output_dir, *, grid=None, zip=None, random=None, ranges=None, se
 
     if slurm:
         from clothtool.sweeps.slurm import write_script
-        import shlex
 
         _count(result, statuses, todo)
+        result.todo = len(todo)
         if todo:
             result.script, result.tasks = write_script(folder.root, todo, per_task)
             result.sbatch = f"sbatch {shlex.quote(str(result.script))}"
-        else:
-            result.sbatch = None
         return result
 
     from clothtool.sweeps.pool import run_pool

@@ -9,6 +9,7 @@ parent stops the workers with SIGTERM (each run then cleans up as ``clothtool
 simulate`` does and is left not done) before the parent re-raises.
 """
 
+import contextlib
 import multiprocessing
 import os
 import signal
@@ -75,12 +76,18 @@ def run_pool(root, runs, analysis, jobs, on_done):
             busy = [w for w in workers if w.run is not None]
             ready = wait([w.conn for w in busy] + [w.process.sentinel for w in busy])
             for w in busy:
-                if w.conn in ready and w.conn.poll():
-                    run, status = w.conn.recv()
+                if w.conn not in ready and w.process.sentinel not in ready:
+                    continue
+                try:
+                    message = w.conn.recv() if w.conn.poll() else None
+                except (EOFError, OSError):  # it died while we looked
+                    message = None
+                if message is not None:
+                    run, status = message
                     w.run = None
                     on_done(run, status)
                     _hand_out(w, pending)
-                elif w.process.sentinel in ready and not w.conn.poll():
+                elif not w.process.is_alive():
                     run, w.run = w.run, None
                     w.process.join()
                     on_done(run, _died(root, run, w.process.exitcode))
@@ -90,7 +97,8 @@ def run_pool(root, runs, analysis, jobs, on_done):
                         workers.append(fresh)
                         _hand_out(fresh, pending)
         for w in workers:
-            w.conn.send(None)
+            with contextlib.suppress(OSError):
+                w.conn.send(None)
         for w in workers:
             w.process.join()
     except BaseException:
@@ -101,7 +109,8 @@ def run_pool(root, runs, analysis, jobs, on_done):
 def _hand_out(worker, pending):
     if pending:
         worker.run = pending.pop()
-        worker.conn.send(worker.run)
+        with contextlib.suppress(OSError):  # it just died: its sentinel tells, and fails the run
+            worker.conn.send(worker.run)
 
 
 def _died(root, run, exitcode):
