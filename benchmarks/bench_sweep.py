@@ -7,18 +7,23 @@ Writes ``sweep.csv`` and ``sweep.md``. The scene: a 16×16 sheet on two corners,
 frames at 30 fps (the default implicit solver); the runs differ in
 ``material.density`` only (0.200 … 0.210 kg/m²), so each costs about the same.
 
-- ``one run``: the simulation alone, in a process that has already run one (numba's
-  kernels loaded): the median over 3 runs, and the sum over the N runs' configs measured
-  the same way; ``ideal`` = that sum / jobs.
 - ``sweep``: ``clothtool sweep BASE -o DIR --grid material.density=… -j JOBS -q``, from the
   process start to its end (Python start-up, worker start-up, every run, manifest).
-- ``process per run``: the same runs as ``clothtool simulate`` commands, JOBS at a time
-  (what a shell loop or ``make -j`` gives): the start-up each run pays that the pool's
-  workers pay once.
+- ``one run``: the median of the runs' own times in that sweep (``seconds`` in the
+  manifest: simulation and status file, measured in the worker), so that it saw the same
+  load as the sweep; ``ideal`` = N/jobs × one run, and the ratio sweep / ideal is the
+  overhead: the start-up of the processes (each worker's first run also loads numba's
+  kernels: ``first run``), the parent's bookkeeping, and the uneven end (the last runs
+  leave cores idle).
+- ``warm run``: one run in a process that has already run one, measured alone before the
+  sweeps (the machine's speed at that moment, for reference).
+- ``process per run`` (12 runs only): the same runs as ``clothtool simulate`` commands,
+  JOBS at a time (what a shell loop or ``make -j`` gives), against the same ideal.
 
 The machine is shared (2 cores): the load average is recorded beside the figures.
 """
 
+import csv
 import os
 import statistics
 import subprocess
@@ -38,6 +43,7 @@ time: {fps: 30, frames: 40}
 """
 COUNTS = (12, 24, 48)
 JOBS = (1, 2)
+PER_RUN_COUNT = 12
 
 
 def densities(n):
@@ -61,12 +67,6 @@ def warm_times(base, values, out):
     return [float(line) for line in done.stdout.split()]
 
 
-def timed(cmd, env=None):
-    started = time.perf_counter()
-    subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL, env=env)
-    return time.perf_counter() - started
-
-
 def process_per_run(base, values, jobs, out):
     env = {**os.environ, "NUMBA_NUM_THREADS": "1"}
     cmds = [clothtool_cmd("simulate", base, "-o", out / f"r{i}", "-q", "--set",
@@ -85,29 +85,39 @@ def run(out_dir):
         tmp = Path(tmp)
         base = tmp / "base.yaml"
         base.write_text(BASE)
-        one = statistics.median(warm_times(base, [0.2] * 3, tmp / "warm"))
+        warm = statistics.median(warm_times(base, [0.2] * 3, tmp / "warm"))
         for n in COUNTS:
             values = densities(n)
-            total = sum(warm_times(base, values, tmp / "warm"))
             for jobs in JOBS:
                 grid = "material.density=" + ",".join(map(str, values))
                 load = os.getloadavg()[0]
-                wall = timed(clothtool_cmd("sweep", base, "-o", tmp / f"s{n}-{jobs}", "--grid", grid,
-                                           "-j", jobs, "-q"))
-                per_run = process_per_run(base, values, jobs, tmp / f"p{n}-{jobs}")
-                ideal = total / jobs
-                rows.append({"runs": n, "jobs": jobs, "one_run_s": one, "ideal_s": ideal,
-                             "sweep_s": wall, "sweep_ratio": wall / ideal,
-                             "process_per_run_s": per_run, "process_per_run_ratio": per_run / ideal,
-                             "load_before": load})
+                folder = tmp / f"s{n}-{jobs}"
+                started = time.perf_counter()
+                subprocess.run(clothtool_cmd("sweep", base, "-o", folder, "--grid", grid, "-j", jobs,
+                                             "-q"), check=True, stdout=subprocess.DEVNULL)
+                wall = time.perf_counter() - started
+                with open(folder / "manifest.csv", newline="") as fh:
+                    seconds = [float(r["seconds"]) for r in csv.DictReader(fh)]
+                one = statistics.median(seconds)
+                ideal = n * one / jobs
+                row = {"runs": n, "jobs": jobs, "warm_run_s": warm, "one_run_s": one,
+                       "first_run_s": max(seconds), "ideal_s": ideal, "sweep_s": wall,
+                       "sweep_ratio": wall / ideal, "load": load}
+                if n == PER_RUN_COUNT:
+                    per_run = process_per_run(base, values, jobs, tmp / f"p{n}-{jobs}")
+                    row.update(process_per_run_s=per_run, process_per_run_ratio=per_run / ideal)
+                rows.append(row)
                 print(f"  {n} runs, -j {jobs}: sweep {wall:.1f} s = {wall / ideal:.2f}× ideal "
-                      f"{ideal:.1f} s; process per run {per_run:.1f} s ({per_run / ideal:.2f}×); "
-                      f"load {load:.1f}", flush=True)
+                      f"{ideal:.1f} s (one run {one:.2f} s, first {max(seconds):.2f} s)"
+                      + (f"; process per run {row['process_per_run_s']:.1f} s "
+                         f"({row['process_per_run_ratio']:.2f}×)" if n == PER_RUN_COUNT else "")
+                      + f"; load {load:.1f}", flush=True)
     columns = list(rows[0])
     write_csv(out_dir / "sweep.csv", rows, columns)
     (out_dir / "sweep.md").write_text(
         "## Sweep overhead (`python -m benchmarks sweep`)\n\n"
-        f"Runs of about {one:.2f} s each (16×16 sheet, 40 frames; simulation alone, warm "
-        "process, median). ideal = Σ warm run times / jobs; sweep = `clothtool sweep -j JOBS` "
-        "end to end; process per run = one `clothtool simulate` per run, JOBS at a time.\n\n"
+        "16×16 sheet, 40 frames per run. one run = median of the runs' own times in the sweep; "
+        "ideal = runs / jobs × one run; sweep = `clothtool sweep -j JOBS` end to end; "
+        "first run = the slowest run (a worker's first: numba's kernels loaded); process per "
+        f"run = one `clothtool simulate` per run, JOBS at a time. Warm run alone: {warm:.2f} s.\n\n"
         + markdown_table(rows, columns))
