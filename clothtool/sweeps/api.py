@@ -46,7 +46,7 @@ class SweepResult:
 
 def sweep(base, output_dir, *, grid=None, zip=None, random=None, ranges=None, seed=None,
           settings=None, jobs=1, slurm=False, per_task=1, analyze=False,
-          fields=ANALYSIS_FIELDS, retry_failed=False, progress=False, on_done=None):
+          fields=ANALYSIS_FIELDS, retry_failed=False, on_done=None):
     """Run (or, with ``slurm``, prepare) a parameter sweep over the config file ``base``.
 
     ``grid``: {dotted key: [values]} or ``["key=v1,v2", …]``, the product of the lists;

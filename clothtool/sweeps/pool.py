@@ -13,6 +13,7 @@ import contextlib
 import multiprocessing
 import os
 import signal
+import threading
 from multiprocessing.connection import wait
 
 from clothtool import interrupt
@@ -22,10 +23,19 @@ def _worker(conn, root, analysis, threads):
     """A pool worker's main loop: receive a run id, run it, send back (run, status)."""
     if threads is not None:  # before numba is imported
         os.environ["NUMBA_NUM_THREADS"] = threads
-    interrupt.install()
-    from clothtool.sweeps.run import run_one
-
     try:
+        interrupt.install()
+        for signum in (signal.SIGINT, signal.SIGTERM):
+            handler = signal.getsignal(signum)
+            if callable(handler):
+                signal.signal(signum, _once(handler))
+        from tqdm import tqdm
+
+        # tqdm's default lock is a multiprocessing semaphore (made even for a disabled bar):
+        # a worker stopped by a signal would leak it, and the resource tracker would say so
+        tqdm.set_lock(threading.RLock())
+        from clothtool.sweeps.run import run_one
+
         while True:
             run = conn.recv()
             if run is None:
@@ -33,6 +43,22 @@ def _worker(conn, root, analysis, threads):
             conn.send((run, run_one(root, run, analysis)))
     except (KeyboardInterrupt, EOFError, BrokenPipeError):
         return  # the parent is stopping the sweep; nothing of this run was published
+
+
+def _once(handler):
+    """``handler`` for the first SIGINT or SIGTERM, then both ignored: Ctrl-C reaches the
+    workers and the parent's SIGTERM follows it, and the second must not interrupt the
+    first one's clean-up. (Ignored by a Python function: with SIG_IGN, a signal already
+    pending is reported as "ignored due to race condition".)"""
+    def first(signum, frame):
+        signal.signal(signal.SIGINT, _ignore)
+        signal.signal(signal.SIGTERM, _ignore)
+        handler(signum, frame)
+    return first
+
+
+def _ignore(signum, frame):
+    pass
 
 
 def _context():
