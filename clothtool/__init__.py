@@ -7,6 +7,7 @@ Library API (the CLI is a thin layer over these)::
     mesh = clothtool.read_ply("frame_0001.ply")           # our own PLY reader
     mesh = clothtool.read_obj("frame_0001.obj")           # and OBJ reader (same mesh type)
     clothtool.simulate("config.yaml")                     # implicit cloth simulation → PLY frames
+    clothtool.sweep("base.yaml", "runs", grid={"material.stretch": [1e3, 1e4]})  # many of them
 
 Heavy modules (numba, h5py) are imported on first use so that ``clothtool --help`` starts fast.
 """
@@ -22,6 +23,8 @@ _LAZY = {
     "discover_frames": ("clothtool.io.frames", "discover_frames"),
     "simulate": ("clothtool.sim.api", "simulate"),
     "load_config": ("clothtool.sim.config", "load_config"),
+    "sweep": ("clothtool.sweeps.api", "sweep"),
+    "sweep_report": ("clothtool.sweeps.report", "sweep_report"),
 }
 
 from clothtool.errors import ClothtoolError, InputError, NumericalError  # noqa: E402

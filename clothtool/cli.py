@@ -375,6 +375,116 @@ def simulate(config, output, settings, quiet):
         click.echo(result.describe())
 
 
+# ---------------------------------------------------------------- parameter sweeps (docs/sweep.md)
+
+OPTIONS.update({"grid": "--grid", "zip": "--zip", "random": "--random", "ranges": "--range",
+                "seed": "--seed", "jobs": "--jobs", "per_task": "--per-task", "plot": "--plot",
+                "against": "--against"})
+
+SWEEP_EPILOG = """\b
+Examples:
+  clothtool sweep base.yaml -o runs/ --grid material.stretch=1e3,1e4,1e5 \\
+        --grid material.bend=1e-5,1e-4 --jobs 2          6 runs, 2 at a time
+  clothtool sweep base.yaml -o runs/ --zip material.stretch=1e3,1e4 --zip material.shear=10,100
+  clothtool sweep base.yaml -o data/ --random 1000 --seed 0 \\
+        --range material.stretch=1e3:1e5:log --range material.damping=0:0.05 --slurm --per-task 10
+  clothtool sweep-report runs/ --plot max_stretch --against material.stretch
+
+\b
+Rerun the same command to resume: done runs are skipped (failed ones too, unless
+--retry-failed). runs/manifest.csv lists every run, its parameters and status.
+
+""" + EXIT_CODES_HELP
+
+
+@main.command(epilog=SWEEP_EPILOG)
+@click.argument("base", type=click.Path(dir_okay=False))
+@click.option("-o", "--output", required=True, type=click.Path(file_okay=False),
+              help="Sweep folder: run_NNNN/ per run, manifest.csv (a rerun resumes it).")
+@click.option("--grid", multiple=True, metavar="KEY=V1,V2,...",
+              help="Values of one config key; the runs are the product of all --grid lists.")
+@click.option("--zip", "zipped", multiple=True, metavar="KEY=V1,V2,...",
+              help="Values taken together, element by element, across all --zip lists.")
+@click.option("--random", type=int, default=None, metavar="N",
+              help="N random samples of the --range keys (needs --seed).")
+@click.option("--range", "ranges", multiple=True, metavar="KEY=LO:HI[:log|:int]",
+              help="A range a --random sweep draws from: uniform, log-uniform or integer.")
+@click.option("--seed", type=int, default=None, help="Seed of a --random sweep.")
+@click.option("--set", "settings", multiple=True, metavar="KEY=VALUE",
+              help="Override one config key in every run (as simulate --set).")
+@click.option("-j", "--jobs", default=1, show_default=True, type=int,
+              help="Runs at a time on this machine (worker processes).")
+@click.option("--slurm", is_flag=True,
+              help="Write a Slurm job-array script instead of running; print its sbatch line.")
+@click.option("--per-task", default=1, show_default=True, type=int,
+              help="Runs per Slurm array task.")
+@click.option("--analyze", is_flag=True,
+              help="Also analyse each run against its rest pattern (--reference uv).")
+@click.option("--fields", default="stretch,area_ratio,flags", show_default=True, metavar="NAMES",
+              help="Fields the --analyze results store (as analyze --fields).")
+@click.option("--retry-failed", is_flag=True, help="Rerun the runs that failed before.")
+@click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary.")
+def sweep(base, output, grid, zipped, random, ranges, seed, settings, jobs, slurm, per_task,
+          analyze, fields, retry_failed, quiet):
+    """Run a simulation for each combination of config values (a parameter sweep).
+
+    BASE is a simulation config; each run gets a folder with its resolved config,
+    frames and stats.csv. A run that fails is recorded with its error and the sweep
+    goes on (exit code 3 when any run failed). Gather the results with sweep-report.
+    """
+    from clothtool.sweeps.api import sweep as run_sweep
+
+    bar = None
+    if _progress_enabled(quiet) and not slurm:
+        from tqdm import tqdm
+
+        tqdm.monitor_interval = 0  # no monitor thread: the pool forks its workers
+        bar = tqdm(desc="sweep", unit="run", file=sys.stderr)
+    try:
+        result = run_sweep(base, output, grid=list(grid), zip=list(zipped), random=random,
+                           ranges=list(ranges), seed=seed, settings=list(settings), jobs=jobs,
+                           slurm=slurm, per_task=per_task, analyze=analyze, fields=fields,
+                           retry_failed=retry_failed, on_done=bar and (lambda r, s: bar.update()))
+    finally:
+        if bar is not None:
+            bar.close()
+    if not quiet or slurm:
+        click.echo(result.describe())
+    if result.failed and not slurm:
+        click.get_current_context().exit(3)
+
+
+@main.command("sweep-report")
+@click.argument("runs", type=click.Path(file_okay=False))
+@click.option("--plot", multiple=True, metavar="METRIC",
+              help="Draw METRIC (a table column, e.g. max_stretch) against a parameter.")
+@click.option("--against", default=None, metavar="KEY",
+              help="The parameter of --plot's x axis [default: the sweep's first].")
+@click.option("--format", "plot_format", type=click.Choice(["png", "pdf", "svg"]), default="png",
+              show_default=True, help="Format of the plots.")
+def sweep_report(runs, plot, against, plot_format):
+    """Gather a sweep into one table: RUNS/report.csv and RUNS/report.h5 (per-frame series).
+
+    One row per run: parameters, status and error, ms/frame, max stretch, final
+    energies, min separation, and with --analyze the strain percentiles.
+    """
+    from clothtool.sweeps.report import sweep_report as gather
+
+    click.echo(gather(runs, plot=plot, against=against, plot_format=plot_format).describe())
+
+
+@main.command("sweep-task", hidden=True)
+@click.argument("runs", type=click.Path(file_okay=False))
+@click.argument("ids", nargs=-1, required=True)
+def sweep_task(runs, ids):
+    """One Slurm array task of a sweep: run the named runs that are not done yet."""
+    from clothtool.sweeps.slurm import run_task
+
+    for run, status in run_task(runs, list(ids)).items():
+        click.echo(f"{run}: {status['status']}" + (f": {status['error']}" if "error" in status
+                                                   else f" in {status['seconds']:.2f} s"))
+
+
 def run():
     """The ``clothtool`` console script: :func:`main`, then a fast exit.
 

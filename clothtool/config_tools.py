@@ -108,6 +108,22 @@ _ValueLoader.add_implicit_resolver(
     list("-+0123456789."))
 
 
+def _error(detail, label, culprit):
+    """An InputError: ``label: detail``, or the detail with the keyword arguments ``culprit``
+    (keyword, value) that the CLI spells as its option."""
+    return InputError(f"{label}: {detail}" if label else detail, **culprit)
+
+
+def parse_value(raw, label=None, **culprit):
+    """A value as YAML (``2e4`` a float, ``[0, -9.81, 0]`` a list, ``xz`` a string); an
+    :class:`InputError` starts with ``label`` or carries ``culprit`` (keyword, value)."""
+    try:
+        return yaml.load(raw, Loader=_ValueLoader)
+    except yaml.YAMLError as exc:
+        problem = getattr(exc, "problem", None) or "not valid YAML"
+        raise _error(f"value {raw!r} is {problem}", label, culprit) from None
+
+
 def parse_assignment(text):
     """'a.b.c=value' → (['a', 'b', 'c'], parsed value). Errors carry the keyword ``overrides``
     (the argument of :func:`apply_overrides` and of ``load_config``; the CLI's ``--set``)."""
@@ -118,12 +134,7 @@ def parse_assignment(text):
         raise InputError("expected dotted.key=value, e.g. material.stretch=2e4", **culprit)
     if not raw.strip():
         raise InputError("no value after '='", **culprit)
-    try:
-        value = yaml.load(raw, Loader=_ValueLoader)
-    except yaml.YAMLError as exc:
-        problem = getattr(exc, "problem", None) or "not valid YAML"
-        raise InputError(f"value {raw!r} is {problem}", **culprit) from None
-    return [p.strip() for p in parts], value
+    return [p.strip() for p in parts], parse_value(raw, **culprit)
 
 
 def apply_overrides(config, overrides):
@@ -132,26 +143,33 @@ def apply_overrides(config, overrides):
     result = copy.deepcopy(config) if config is not None else {}
     for text in overrides:
         parts, value = parse_assignment(text)
-        node = result
-        for depth, part in enumerate(parts):
-            last = depth == len(parts) - 1
-            where = ".".join(parts[:depth]) or "the config"
-            if isinstance(node, dict):
-                if last:
-                    node[part] = value
-                else:
-                    if node.get(part) is None:
-                        node[part] = {}
-                    node = node[part]
-            elif isinstance(node, list):
-                if not (part.lstrip("-").isdigit() and -len(node) <= int(part) < len(node)):
-                    raise InputError(f"{where} is a list of {len(node)}; {part!r} is not an index "
-                                     "into it", keyword="overrides", value=repr(text))
-                if last:
-                    node[int(part)] = value
-                else:
-                    node = node[int(part)]
-            else:
-                raise InputError(f"{where} is {node!r}, not a mapping", keyword="overrides",
-                                 value=repr(text))
+        assign(result, parts, value, keyword="overrides", value=repr(text))
     return result
+
+
+def assign(config, parts, item, label=None, **culprit):
+    """Set the entry of the nested mapping ``config`` at the key path ``parts`` (mappings
+    created as needed, integer parts index lists) to ``item``, in place; an
+    :class:`InputError` when a part does not fit starts with ``label`` or carries
+    ``culprit`` (keyword, value)."""
+    node = config
+    for depth, part in enumerate(parts):
+        last = depth == len(parts) - 1
+        where = ".".join(parts[:depth]) or "the config"
+        if isinstance(node, dict):
+            if last:
+                node[part] = item
+            else:
+                if node.get(part) is None:
+                    node[part] = {}
+                node = node[part]
+        elif isinstance(node, list):
+            if not (part.lstrip("-").isdigit() and -len(node) <= int(part) < len(node)):
+                raise _error(f"{where} is a list of {len(node)}; {part!r} is not an index into "
+                             "it", label, culprit)
+            if last:
+                node[int(part)] = item
+            else:
+                node = node[int(part)]
+        else:
+            raise _error(f"{where} is {node!r}, not a mapping", label, culprit)

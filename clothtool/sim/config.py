@@ -407,19 +407,22 @@ SECTIONS = {f.name: f.default_factory for f in fields(Config) if f.name != "sour
 # ---------------------------------------------------------------------------- loading
 
 
-def load_config(config, *, overrides=None) -> Config:
+def load_config(config, *, overrides=None, base_dir=None) -> Config:
     """Read and validate a config: a YAML path, or an already-parsed dict.
 
     ``overrides``, applied before validation: a mapping of dotted keys → values
     (``{"material.stretch": 1e5}``; string values are read as YAML scalars), or a
     list of ``"key=value"`` strings (:func:`clothtool.config_tools.apply_overrides`,
     which also indexes lists).
+    ``base_dir``: the folder that a dict's relative paths are relative to (default: the
+    current folder).
     """
     if isinstance(config, Mapping):
-        raw, source, base = _deep_copy(config), None, Path.cwd()
+        raw, source = _deep_copy(config), None
+        base = Path(base_dir) if base_dir is not None else Path.cwd()
     else:
         source = Path(os.fspath(config))
-        raw = _read_yaml(source)
+        raw = read_yaml(source)
         base = source.parent
     if isinstance(overrides, Mapping):
         for dotted, value in overrides.items():
@@ -439,7 +442,8 @@ def load_config(config, *, overrides=None) -> Config:
     return replace(resolve_paths(config, base), source=source)
 
 
-def _read_yaml(path: Path):
+def read_yaml(path: Path):
+    """The mapping in the YAML file ``path``; every problem is a one-line InputError naming it."""
     try:
         text = path.read_text(encoding="utf-8")
     except FileNotFoundError:
