@@ -71,7 +71,7 @@ def sweep(base, output_dir, *, grid=None, zip=None, random=None, ranges=None, se
             raise InputError("must be a positive integer", keyword=name, value=value)
     analysis = None
     if analyze:
-        from clothtool.analysis.fields import parse_fields
+        from clothtool.fields import parse_fields
 
         try:
             names = parse_fields(fields)
