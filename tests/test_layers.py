@@ -163,7 +163,8 @@ def test_the_contract_catches_what_it_forbids(tmp_path):
     assert cycles(graph) == [frozenset({"clothtool.errors", "clothtool.io.h5"})]
 
 
-@pytest.mark.parametrize("module,layer", [("clothtool.cli", 0), ("clothtool.sim.solvers.vbd", 1),
-                                          ("clothtool.io.result", 2), ("clothtool.fields", 3)])
+@pytest.mark.parametrize("module,layer", [("clothtool.cli", 0), ("clothtool.sweeps.pool", 1),
+                                          ("clothtool.sim.solvers.vbd", 2),
+                                          ("clothtool.io.result", 3), ("clothtool.fields", 4)])
 def test_layers_are_where_the_docs_say(module, layer):
     assert layer_of(module)[0] == layer
