@@ -32,7 +32,7 @@ from numba import njit
 from clothtool.contact.barrier import NO_OPERATOR, gauss_newton_offdiagonal_multiply
 from clothtool.sim.filter import PINNED, apply_filter
 from clothtool.sim.multigrid import NO_MULTIGRID, vcycle
-from clothtool.vec3 import inverse3
+from clothtool.vec3 import spd_inverse3
 
 
 class BlockPattern:
@@ -73,6 +73,7 @@ class BlockMatrix:
     def __init__(self, pattern, values=None):
         self.pattern = pattern
         self.values = pattern.zeros() if values is None else values
+        self.floor = np.zeros(pattern.n)  # a lower bound of each diagonal block's eigenvalues
 
     @property
     def row_ptr(self):
@@ -97,8 +98,12 @@ class BlockMatrix:
         return out
 
     def add_diagonal(self, d):
-        """A += diag(d_v I₃) for a per-vertex scalar d (N,)."""
+        """A += diag(d_v I₃) for a per-vertex scalar d (N,) ≥ 0, which becomes :attr:`floor`:
+        what else the matrix holds is positive semi-definite (PSD-projected element
+        Hessians, Gauss–Newton contact blocks), so d_v bounds the eigenvalues of diagonal
+        block v from below, and the preconditioners keep to it where rounding has lost it."""
         add_block_diagonal(self.values, self.pattern.diag, d)
+        self.floor = np.ascontiguousarray(np.broadcast_to(d, (self.pattern.n,)), dtype=np.float64)
 
     def to_scipy(self):
         import scipy.sparse as sps
@@ -128,7 +133,8 @@ class BlockJacobi:
 
     def setup(self, matrix, constraints):
         """Invert the diagonal blocks of a :class:`BlockMatrix` (pinned vertices: zero)."""
-        block_jacobi(matrix.values, matrix.pattern.diag, constraints.kind, self.inverse)
+        block_jacobi(matrix.values, matrix.pattern.diag, constraints.kind, matrix.floor,
+                     self.inverse)
 
 
 @njit(cache=True)
@@ -192,11 +198,12 @@ def _apply_inverse(inv, r, z):
 
 
 @njit(cache=True)
-def block_jacobi(values, diag, kind, inv):
-    """inv = inverses of the diagonal blocks (zero for pinned vertices)."""
+def block_jacobi(values, diag, kind, floor, inv):
+    """inv = inverses of the diagonal blocks (zero for pinned vertices), each with its
+    eigenvalues at least floor[v] (:func:`~clothtool.vec3.spd_inverse3`)."""
     for i in range(diag.shape[0]):
         if kind[i] != PINNED:
-            inverse3(values[diag[i]], inv[i])
+            spd_inverse3(values[diag[i]], floor[i], inv[i])
         else:
             inv[i] = 0.0
 

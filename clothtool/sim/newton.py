@@ -221,7 +221,7 @@ class NewtonIntegrator(Integrator):
         inertia = model.mass / (h_eff * h_eff)
         tol = solver.newton_tolerance
         report = StepReport()
-        forcing, g_prev, step = solver.tolerance, 0.0, 1.0
+        forcing, g_prev, step, cut = solver.tolerance, 0.0, 1.0, False
         damped = self._damping is not None
         from_x_n = solver.newton_iterations == 1 or contact is not None  # x starts equal to x_n
         if damped and not from_x_n:
@@ -242,7 +242,11 @@ class NewtonIntegrator(Integrator):
                 elastic += contact.assemble(x, grad, matrix)
             g_norm = _filtered_norm(grad, kind, self._normal, constrained)
             if it > 0:
-                dx = (1.0 - step) * dx  # PCG guess: what the line search left of the last step
+                # PCG guess: what the line search left of the last step; after a step that CCD
+                # cut short, zero: the barrier it ran into has changed the Hessian by up to
+                # 1e22·m/ĥ², and the old direction (into the barrier) still met the loose
+                # forcing term with no PCG iteration, so Newton repeated it until it gave up
+                dx = np.zeros_like(dx) if cut else (1.0 - step) * dx
                 forcing = eisenstat_walker(g_norm, g_prev, forcing, solver.tolerance)
             g_prev = g_norm
             # moving pins and animated colliders short of their end-of-step positions move
@@ -264,6 +268,7 @@ class NewtonIntegrator(Integrator):
             step = 1.0
             if contact is not None:  # from the collision-free fraction of the step
                 step = contact.max_step(dx)
+            cut = step < 1.0
             if (solver.line_search or contact is not None) and not prescribed:
                 step = self._line_search(x, dx, base, target, elastic, h_eff, step, contact)
             elif damped:
