@@ -314,7 +314,7 @@ def profile(out_dir, steps=20):
     stages = {("clothtool.sim.energy", "membrane_assemble"): "membrane assembly (stretch+shear)",
               ("clothtool.sim.energy", "dihedral_assemble"): "bending assembly (dihedral)",
               ("clothtool.sim.energy", "quadratic_gradient"): "bending (quadratic)",
-              ("clothtool.sim.blocksparse", "block_multiply"): "damping products",
+              ("clothtool.sim.linalg.blocks", "block_multiply"): "damping products",
               ("clothtool.sim.newton", "filtered_pcg"): "linear solve (PCG)",
               ("clothtool.sim.newton", "resolve_collisions"): "collisions (projection)",
               ("clothtool.sim.newton", "contact_constraints"): "collisions (contact constraints)",

@@ -10,11 +10,12 @@ from hypothesis import strategies as st
 from clothtool.contact.shapes import capsule
 from clothtool.io.ply import write_ply
 from clothtool.sim.api import simulate
-from clothtool.sim.blocksparse import BlockJacobi, BlockMatrix, ConstraintFilter, filtered_pcg
+from clothtool.sim.linalg.blocks import BlockMatrix, ConstraintFilter
+from clothtool.sim.linalg.multigrid import Hierarchy
+from clothtool.sim.linalg.pcg import BlockJacobi, filtered_pcg
 from clothtool.sim.config import GridSpec, load_config
 from clothtool.sim.mesh import grid_mesh
 from clothtool.sim.model import build_model
-from clothtool.sim.multigrid import Hierarchy
 from clothtool.sim.solvers.implicit import ImplicitEuler
 from clothtool.vec3 import spd_inverse3
 

@@ -10,12 +10,12 @@ import scipy.sparse.linalg as spla
 from clothtool.errors import NumericalError
 from clothtool.io.ply import read_ply, write_ply
 from clothtool.sim.api import simulate
-from clothtool.sim.blocksparse import (BlockJacobi, BlockMatrix, ConstraintFilter,
-                                      block_multiply, filtered_pcg)
+from clothtool.sim.linalg.blocks import BlockMatrix, ConstraintFilter, block_multiply
+from clothtool.sim.linalg.multigrid import Hierarchy
+from clothtool.sim.linalg.pcg import BlockJacobi, filtered_pcg
 from clothtool.sim.config import load_config
 from clothtool.sim.methods import make_integrator
 from clothtool.sim.model import build_model
-from clothtool.sim.multigrid import Hierarchy
 from clothtool.sim.solvers.implicit import ImplicitEuler
 
 

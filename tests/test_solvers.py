@@ -181,7 +181,7 @@ def test_spring_hessian_is_psd_and_matches_the_gradient():
     sp = model.springs
     rng = np.random.default_rng(1)
     x = model.mesh.positions + rng.normal(0, 0.1, model.mesh.positions.shape)
-    from clothtool.sim.blocksparse import BlockPattern
+    from clothtool.sim.linalg.blocks import BlockPattern
     pattern = BlockPattern(model.n_vertices, sp.pairs)
     slots = pattern.slots(sp.pairs)
     grad = np.zeros_like(x)

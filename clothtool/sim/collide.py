@@ -4,7 +4,7 @@ Before each step, every free vertex whose predicted position x_n + h v_n + h² g
 comes closer than ``margin`` to a collider surface (signed distance φ < margin)
 is held on it for the step: its motion along the surface normal n is prescribed,
 n·Δx = margin − φ(x_n), and the filter S = I − n nᵀ leaves it free to slide (see
-``blocksparse``). The solve then moves its neighbours consistently, which a
+``linalg.pcg``). The solve then moves its neighbours consistently, which a
 projection after the step cannot do: pushing one vertex of stiff cloth back by a
 few centimetres strains its triangles by tens of percent and feeds energy in.
 

@@ -22,7 +22,7 @@ damping force is −βK v_{n+1} with the integrator's own velocity; collider fri
 uses ĥ the same way (:mod:`clothtool.sim.collide`).
 
 Each Newton step solves (M/ĥ² + K(x) + D) Δx = −∇E(x) by filtered PCG
-(:mod:`clothtool.sim.blocksparse`); with ``line_search`` its length is halved (at most
+(:mod:`clothtool.sim.linalg.pcg`); with ``line_search`` its length is halved (at most
 ``MAX_HALVINGS`` times) until E does not increase. Newton starts from the inertia
 target x̃ (the motion without forces), its first PCG from the free-fall step ĥ²g (exact
 for a falling sheet, so free fall does not depend on the PCG tolerance), and stops after ``newton_iterations`` steps or
@@ -57,12 +57,12 @@ import numpy as np
 
 from clothtool.contact.barrier import NO_OPERATOR
 from clothtool.errors import NumericalError
-from clothtool.sim.blocksparse import BlockMatrix, ConstraintFilter, filtered_pcg
 from clothtool.sim.collide import apply_friction, contact_constraints, resolve_collisions
 from clothtool.sim.contact import BarrierContact
 from clothtool.sim.filter import apply_filter
 from clothtool.sim.integrator import Integrator, StepReport, gravity_potential, mass_weighted
-from clothtool.sim.multigrid import make_preconditioner
+from clothtool.sim.linalg.blocks import BlockMatrix, ConstraintFilter
+from clothtool.sim.linalg.pcg import filtered_pcg, make_preconditioner
 
 MAX_HALVINGS = 30  # down to 2⁻³⁰: a descent direction always decreases E for a small enough step
 REACHED = 1e-9  # m: moving pins and animated colliders this close to their goal have reached it

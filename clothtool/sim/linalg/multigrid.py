@@ -26,6 +26,7 @@ import numpy as np
 from numba import njit
 
 from clothtool.sim.filter import FREE, PINNED, SLIDING
+from clothtool.sim.linalg.blocks import BlockPattern
 from clothtool.vec3 import spd_inverse3
 
 COARSEST = 48  # nodes at which the hierarchy stops (dense Cholesky of ≤ 3·48 unknowns)
@@ -85,14 +86,12 @@ class Hierarchy:
     @classmethod
     def for_mesh(cls, pattern, faces):
         """The hierarchy of a matrix pattern whose aggregation follows the triangles."""
-        from clothtool.sim.blocksparse import BlockPattern
-
         triangles = BlockPattern(pattern.n, faces)
         return cls(pattern.row_ptr, pattern.col, graph=(triangles.row_ptr, triangles.col))
 
     def setup(self, matrix, constraints):
-        """Coarse matrices of a :class:`~clothtool.sim.blocksparse.BlockMatrix` filtered by a
-        :class:`~clothtool.sim.blocksparse.ConstraintFilter` (done again inside every solve)."""
+        """Coarse matrices of a :class:`~clothtool.sim.linalg.blocks.BlockMatrix` filtered by a
+        :class:`~clothtool.sim.linalg.blocks.ConstraintFilter` (done again inside every solve)."""
         setup_levels(matrix.values, constraints.kind, constraints.normal, constraints.active,
                      matrix.floor, self.arrays)
 
@@ -145,16 +144,6 @@ NO_MULTIGRID = (np.zeros(1, np.int64), np.zeros(1, np.int64), np.zeros(1, np.int
                 np.zeros(1, np.int64), np.zeros(0, np.int64), np.zeros(0, np.int64),
                 np.zeros(0, np.int64), np.zeros((0, 3, 3)), np.zeros((0, 3, 3)), np.zeros((0, 0)),
                 np.zeros((0, 3)), np.zeros((0, 3)), np.zeros((0, 3)))
-
-
-def make_preconditioner(name, pattern, faces):
-    """``solver.preconditioner`` for a matrix pattern: a :class:`Hierarchy` for
-    ``multigrid`` (block Jacobi on meshes too small to coarsen), else block Jacobi."""
-    from clothtool.sim.blocksparse import BlockJacobi
-
-    if name == "multigrid" and pattern.n > COARSEST:
-        return Hierarchy.for_mesh(pattern, faces)
-    return BlockJacobi(pattern.n)
 
 
 @njit(cache=True)
