@@ -23,7 +23,8 @@ from clothtool.vec3 import spd_inverse3
 def barrier_block(k, n, m):
     """k n nᵀ + m I: a contact barrier's Gauss–Newton block over the inertia m/h²."""
     n = np.asarray(n, float) / np.linalg.norm(n)
-    return k * np.outer(n, n) + m * np.eye(3), (np.eye(3) - np.outer(n, n)) / m + np.outer(n, n) / (k + m)
+    nn = np.outer(n, n)
+    return k * nn + m * np.eye(3), (np.eye(3) - nn) / m + nn / (k + m)
 
 
 @settings(max_examples=200, deadline=None)

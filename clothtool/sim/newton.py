@@ -25,7 +25,7 @@ Each Newton step solves (M/ĥ² + K(x) + D) Δx = −∇E(x) by filtered PCG
 (:mod:`clothtool.sim.linalg.pcg`); with ``line_search`` its length is halved (at most
 ``MAX_HALVINGS`` times) until E does not increase. Newton starts from the inertia
 target x̃ (the motion without forces), its first PCG from the free-fall step ĥ²g (exact
-for a falling sheet, so free fall does not depend on the PCG tolerance), and stops after ``newton_iterations`` steps or
+for a falling sheet, whatever the PCG tolerance), and stops after ``newton_iterations`` steps or
 after a full (not line-search-shortened) step whose largest velocity correction max|Δx|/h
 and whose Newton decrement as a velocity, √(Δxᵀ H Δx / m_free) with m_free the mass of the
 free vertices, are both at most ``newton_tolerance`` (m/s). The decrement weighs Δx by the
