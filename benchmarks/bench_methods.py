@@ -111,6 +111,7 @@ GRID = [
     ("projective", "projective", {}, (1, 4, 16), (5, 20)),
     ("xpbd", "xpbd", {}, (1, 4, 16, 64), (5, 20)),
     ("pbd", "pbd", {}, (1, 4, 16, 64), (5, 20)),
+    ("pbd hierarchical", "pbd", {"pbd_variant": "hierarchical"}, (1, 4, 16), (5, 20)),
     ("explicit", "explicit", {}, (1,), None),  # automatic internal steps (cfl 0.5)
     ("vbd", "vbd", {}, (1, 4, 16, 32), (5, 10, 20)),
     ("vbd no chebyshev", "vbd", {"chebyshev_rho": 0.0}, (1, 16), (10,)),
@@ -227,6 +228,7 @@ def plot(rows, path, title):
 STAB_METHODS = [("implicit", "implicit", {}), ("mass-spring", "mass-spring", {}),
                 ("projective", "projective", {}), ("xpbd", "xpbd", {}),
                 ("pbd gauss-seidel", "pbd", {}), ("pbd jacobi", "pbd", {"pbd_variant": "jacobi"}),
+                ("pbd hierarchical", "pbd", {"pbd_variant": "hierarchical"}),
                 ("explicit", "explicit", {"cfl": 0.0}), ("explicit auto", "explicit", {}),
                 ("vbd", "vbd", {})]
 STAB_STIFFNESS = (1e3, 1e4, 1e5, 1e6)
@@ -314,7 +316,7 @@ def profile(out_dir, steps=20):
     stages = {("clothtool.sim.energy", "membrane_assemble"): "membrane assembly (stretch+shear)",
               ("clothtool.sim.energy", "dihedral_assemble"): "bending assembly (dihedral)",
               ("clothtool.sim.energy", "quadratic_gradient"): "bending (quadratic)",
-              ("clothtool.sim.blocksparse", "block_multiply"): "damping products",
+              ("clothtool.sim.linalg.blocks", "block_multiply"): "damping products",
               ("clothtool.sim.newton", "filtered_pcg"): "linear solve (PCG)",
               ("clothtool.sim.newton", "resolve_collisions"): "collisions (projection)",
               ("clothtool.sim.newton", "contact_constraints"): "collisions (contact constraints)",

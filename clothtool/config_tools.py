@@ -81,7 +81,7 @@ solver:
   line_search: true     # backtracking line search on the Newton steps
   max_speed: 1000.0     # m/s, a faster vertex counts as a blow-up (exit code 3)
   iterations: 10        # pbd, xpbd, projective, vbd: constraint sweeps / local-global iterations / vertex sweeps per step
-  pbd_variant: gauss-seidel  # pbd: gauss-seidel (symmetric sweeps) or jacobi
+  pbd_variant: gauss-seidel  # pbd: gauss-seidel (symmetric sweeps), jacobi or hierarchical
   relaxation: 1.0       # pbd jacobi: α in x_i += Σ corrections / (n_i + α)
   pbd_stiffness: 1.0    # pbd: per-constraint stiffness in (0, 1]
   strain_limit: 0.0     # pbd: keep edges within [1 − ε, 1 + ε] of rest length; 0 = off

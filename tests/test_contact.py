@@ -19,7 +19,7 @@ from clothtool.contact.intersect import (NO, UNSURE, YES, exact_segment_triangle
                                          has_intersections, intersecting_pairs, orient3d,
                                          segment_triangle)
 from clothtool.contact.shapes import rolled_sheet
-from clothtool.sim.pairs import (pair_operator, pairs_add_diagonal, pairs_coupling,
+from clothtool.sim.linalg.pairs import (pair_operator, pairs_add_diagonal, pairs_coupling,
                                  pairs_offdiagonal_multiply)
 
 FD_STEP = 1e-7

@@ -30,13 +30,6 @@ LAYERS = (
 INDEPENDENT = {2}  # layers whose packages must not import one another
 ON_TOP = {"clothtool.sim": "clothtool.sim.solvers"}  # package → its sub-package nothing else imports
 
-# Cycles still present that another change removes; each entry is checked to still exist, so
-# that the exception goes (and the contract holds for it) as soon as the cycle does.
-KNOWN_CYCLES = {
-    # sim/blocksparse.py ↔ sim/multigrid.py: being moved into a sim/linalg package.
-    frozenset({"clothtool.sim.blocksparse", "clothtool.sim.multigrid"}),
-}
-
 
 def module_name(path, root=PACKAGE):
     parts = path.relative_to(root.parent).with_suffix("").parts
@@ -132,11 +125,8 @@ def test_no_upward_or_sideways_import():
 
 def test_no_import_cycle():
     graph, _ = imports()
-    found = cycles(graph)
-    new = [sorted(c) for c in found if c not in KNOWN_CYCLES]
-    assert not new, "import cycles: " + "; ".join(" ↔ ".join(c) for c in new)
-    gone = [sorted(c) for c in KNOWN_CYCLES if c not in found]
-    assert not gone, f"cycle gone, remove it from KNOWN_CYCLES: {gone}"
+    found = [sorted(c) for c in cycles(graph)]
+    assert not found, "import cycles: " + "; ".join(" ↔ ".join(c) for c in found)
 
 
 def test_the_contract_catches_what_it_forbids(tmp_path):

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from clothtool.geometry import dihedral_angles
-from clothtool.sim.blocksparse import BlockMatrix
+from clothtool.sim.linalg.blocks import BlockMatrix
 from clothtool.sim.config import load_config
 from clothtool.sim.energy import FemElastic, SpringElastic
 from clothtool.sim.methods import make_integrator

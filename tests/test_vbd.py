@@ -7,7 +7,7 @@ import yaml
 from click.testing import CliRunner
 
 from clothtool.cli import main
-from clothtool.sim.blocksparse import BlockMatrix
+from clothtool.sim.linalg.blocks import BlockMatrix
 from clothtool.sim.config import load_config
 from clothtool.sim.membrane import membrane_element, membrane_vertex
 from clothtool.sim.energy import FemElastic

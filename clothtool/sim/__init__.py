@@ -14,8 +14,8 @@ Modules, one idea each:
 - ``energy``: the elastic energies the methods integrate (finite elements, springs).
 - ``newton``: the one Newton loop (incremental potential, line search, filtered PCG).
 - ``filter``: Baraff–Witkin's constraint filter (free, pinned, sliding vertices).
-- ``blocksparse``: the block-CSR 3×3 matrix and the filtered PCG.
-- ``multigrid``: the aggregation multigrid preconditioner.
+- ``linalg``: the block-CSR 3×3 matrix, the filtered PCG and its preconditioners (block
+  Jacobi, aggregation multigrid).
 - ``collide``: planes and spheres (contact constraints, friction, projection).
 - ``solvers``: one module per method (implicit, mass-spring, PBD, XPBD, projective, explicit,
   VBD), above everything else in ``sim``.

@@ -33,7 +33,7 @@ PLANES = ("xy", "xz", "yz")
 BEND_MODELS = ("dihedral", "quadratic")
 METHODS = tuple(methods.METHODS)
 PRECONDITIONERS = ("jacobi", "multigrid")
-PBD_VARIANTS = ("gauss-seidel", "jacobi")
+PBD_VARIANTS = ("gauss-seidel", "jacobi", "hierarchical")
 INTEGRATORS = ("bdf2", "euler")
 
 positive = number(minimum=0, exclusive=True)
@@ -337,7 +337,7 @@ class Solver(Section):
     ``method`` picks the solver (``clothtool.sim.solvers``, ``docs/solvers.md``):
     ``mass-spring`` uses the Newton/PCG keys above; ``pbd``, ``xpbd`` and
     ``projective`` run ``iterations`` sweeps per step; ``pbd`` also reads
-    ``pbd_variant`` (gauss-seidel or jacobi), ``relaxation`` (Jacobi α),
+    ``pbd_variant`` (gauss-seidel, jacobi or hierarchical), ``relaxation`` (Jacobi α),
     ``pbd_stiffness`` (0, 1] and ``strain_limit`` (ε: structural springs kept in
     [1 − ε, 1 + ε] of their rest length; 0 = off); ``explicit`` splits each step
     into internal steps of at most ``cfl`` × its estimated critical step (0 = off);

@@ -12,7 +12,7 @@ vertex mass, k the largest membrane stiffness) makes the barrier's stiffness com
 to the inertia term M/h² at the activation distance, so cloth under its own weight rests
 within a few per cent inside the margin, and no pair ever comes closer than the wall. Each Newton
 step's gradient and matrix take the barrier's gradient and Gauss–Newton Hessian (diagonal
-blocks in the matrix, the rest matrix-free in the PCG, :mod:`clothtool.sim.pairs`), and
+blocks in the matrix, the rest matrix-free in the PCG, :mod:`clothtool.sim.linalg.pairs`), and
 the line search starts from the collision-free fraction of the step (additive CCD), so
 every accepted iterate is intersection-free (Li et al. 2020, "Incremental Potential
 Contact", §5). Moving pins and moving colliders move with the Newton steps (the pins as
@@ -46,7 +46,7 @@ from clothtool.contact.ccd import collision_free_step, near_pairs
 from clothtool.contact.friction import friction_assemble, friction_energy, friction_lag
 from clothtool.contact.intersect import intersecting_pairs
 from clothtool.errors import InputError, NumericalError
-from clothtool.sim.pairs import pair_operator, pairs_add_diagonal, pairs_coupling
+from clothtool.sim.linalg.pairs import pair_operator, pairs_add_diagonal, pairs_coupling
 
 ACTIVATION = 0.5  # activation distance d̂ as a fraction of the margin and the thickness
 KAPPA = 1.0  # barrier stiffness in units of max(m̄/h², k) per d̂²

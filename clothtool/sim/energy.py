@@ -16,7 +16,7 @@ from functools import cached_property
 import numpy as np
 
 from clothtool.sim.bending import dihedral_assemble, dihedral_total_energy, quadratic_gradient
-from clothtool.sim.blocksparse import BlockPattern
+from clothtool.sim.linalg.blocks import BlockPattern
 from clothtool.sim.membrane import membrane_assemble, membrane_total_energy
 from clothtool.sim.springs import spring_assemble, spring_energy
 

@@ -13,7 +13,8 @@ method         what it is
 implicit       Baraff–Witkin implicit Euler, Newton + filtered PCG (the default;
                :mod:`clothtool.sim.solvers.implicit`, :mod:`clothtool.sim.newton`)
 mass-spring    implicit Euler on a spring network, PSD-clamped spring Hessians
-pbd            Position Based Dynamics, Gauss–Seidel or Jacobi, strain limiting
+pbd            Position Based Dynamics, Gauss–Seidel, Jacobi or hierarchical, strain
+               limiting
 xpbd           extended PBD: compliant constraints, same springs as mass-spring
 projective     Projective Dynamics: constant prefactored matrix, local projections
 explicit       symplectic Euler with (automatic) internal steps, the baseline

@@ -14,7 +14,7 @@ from functools import cached_property
 import numpy as np
 
 from clothtool.errors import InputError
-from clothtool.sim.blocksparse import BlockPattern, scatter_blocks
+from clothtool.sim.linalg.blocks import BlockPattern, scatter_blocks
 from clothtool.sim.contact import build_contact_scene
 from clothtool.sim.filter import FREE, PINNED
 from clothtool.sim.config import Plane, Sphere

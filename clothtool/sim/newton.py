@@ -13,7 +13,8 @@ and sets v_{n+1} = (x − b)/ĥ, where W is the method's elastic energy
   v_{n+1} − (4/3)v_n + (1/3)v_{n−1} = ĥ M⁻¹f(x_{n+1}) with ĥ = 2h/3; eliminating
   v_{n+1} gives the minimisation above with b = (4x_n − x_{n−1})/3 and
   x̃ = b + ĥ (4v_n − v_{n−1})/3 (Hairer & Wanner, "Solving ODEs II", §V.1). The first
-  step, without x_{n−1}, is backward Euler; (x_{n−1}, v_{n−1}) live in the State.
+  step takes its history (x_{−1}, v_{−1}) from a second-order Taylor step back from the
+  initial state; later ones from the State.
 
 D = (β/ĥ) K is stiffness-proportional (Rayleigh) damping with β = material.damping
 seconds and K the PSD-projected elastic Hessian at x_n (Baraff & Witkin 1998), so that the
@@ -21,9 +22,10 @@ damping force is −βK v_{n+1} with the integrator's own velocity; collider fri
 uses ĥ the same way (:mod:`clothtool.sim.collide`).
 
 Each Newton step solves (M/ĥ² + K(x) + D) Δx = −∇E(x) by filtered PCG
-(:mod:`clothtool.sim.blocksparse`); with ``line_search`` its length is halved (at most
+(:mod:`clothtool.sim.linalg.pcg`); with ``line_search`` its length is halved (at most
 ``MAX_HALVINGS`` times) until E does not increase. Newton starts from the inertia
-target x̃ (the motion without forces) and stops after ``newton_iterations`` steps or
+target x̃ (the motion without forces), its first PCG from the free-fall step ĥ²g (exact
+for a falling sheet, whatever the PCG tolerance), and stops after ``newton_iterations`` steps or
 after a full (not line-search-shortened) step whose largest velocity correction max|Δx|/h
 and whose Newton decrement as a velocity, √(Δxᵀ H Δx / m_free) with m_free the mass of the
 free vertices, are both at most ``newton_tolerance`` (m/s). The decrement weighs Δx by the
@@ -56,13 +58,13 @@ spheres and planes project vertices out after the step (:mod:`clothtool.sim.coll
 import numpy as np
 
 from clothtool.errors import NumericalError
-from clothtool.sim.blocksparse import BlockMatrix, ConstraintFilter, filtered_pcg
 from clothtool.sim.collide import resolve_collisions
 from clothtool.sim.contact import BarrierContact
 from clothtool.sim.filter import apply_filter
 from clothtool.sim.integrator import Integrator, StepReport, gravity_potential, mass_weighted
-from clothtool.sim.multigrid import make_preconditioner
-from clothtool.sim.pairs import NO_PAIRS
+from clothtool.sim.linalg.blocks import BlockMatrix, ConstraintFilter
+from clothtool.sim.linalg.pairs import NO_PAIRS
+from clothtool.sim.linalg.pcg import filtered_pcg, make_preconditioner
 
 MAX_HALVINGS = 30  # down to 2⁻³⁰: a descent direction always decreases E for a small enough step
 REACHED = 1e-9  # m: moving pins and animated colliders this close to their goal have reached it
@@ -170,14 +172,41 @@ class NewtonIntegrator(Integrator):
 
     def discretisation(self, state):
         """(ĥ, base, inertia target) of the step from ``state``: the velocity after the step
-        is v = (x − base)/ĥ. Backward Euler: (h, x_n, x_n + h v_n); BDF2 (from the second
-        step on): (2h/3, (4x_n − x_{n−1})/3, base + ĥ(4v_n − v_{n−1})/3)."""
+        is v = (x − base)/ĥ. Backward Euler: (h, x_n, x_n + h v_n); BDF2:
+        (2h/3, (4x_n − x_{n−1})/3, base + ĥ(4v_n − v_{n−1})/3), on the first step with the
+        history of :meth:`taylor_history`."""
         h = self.h
-        if self.bdf2 and state.x_prev is not None:
+        if self.bdf2:
+            x_prev, v_prev = ((state.x_prev, state.v_prev) if state.x_prev is not None
+                              else self.taylor_history(state))
             h_eff = 2.0 * h / 3.0
-            base = (4.0 * state.x - state.x_prev) / 3.0
-            return h_eff, base, base + h_eff * ((4.0 * state.v - state.v_prev) / 3.0)
+            base = (4.0 * state.x - x_prev) / 3.0
+            return h_eff, base, base + h_eff * ((4.0 * state.v - v_prev) / 3.0)
         return h, state.x, state.x + h * state.v
+
+    def taylor_history(self, state):
+        """(x_{−1}, v_{−1}) = (x_0 − h v_0 + ½h² a_0, v_0 − h a_0): BDF2's missing history from
+        a second-order Taylor step back, so that a quadratic motion (free fall) is exact from
+        the first step (a backward-Euler first step leaves free fall ¾h²g behind for good).
+        a_0 = g + (M + h²K)⁻¹ f on the free vertices (0 on pinned ones), f = −∇W(x_0) − βK v_0
+        the elastic and damping force at the start, K its stiffness: M⁻¹f to O(h²) for the
+        slow motions, but bounded for stiff ones — with M⁻¹f itself, a crumpled start's
+        history lies far off and the run blew up (stretch 1e8 in 12 frames)."""
+        model, h, x0, v0 = self.model, self.h, state.x, state.v
+        matrix = self.matrix
+        grad = np.zeros_like(x0)
+        self.elastic.assemble(x0, grad, matrix.values)
+        force = -grad
+        if self._damping is not None:
+            force -= model.damping * matrix.multiply(v0, np.empty_like(v0))
+        matrix.add_diagonal(model.mass / (h * h))
+        elastic = np.zeros_like(x0)
+        filtered_pcg(matrix, force / (h * h), elastic, ConstraintFilter(model.kind, self._normal),
+                     self.solver.tolerance, self.solver.max_iterations, self.preconditioner)
+        a0 = model.gravity + elastic
+        if model.has_pins:
+            a0[model.pinned] = 0.0
+        return x0 - h * v0 + (0.5 * h * h) * a0, v0 - h * a0
 
     def _freeze_damping(self, k_values, beta_over_h, displacement):
         """D = (β/ĥ) K(x_n) from the blocks of K(x_n), frozen for the step, and D(x − base)."""
@@ -197,9 +226,10 @@ class NewtonIntegrator(Integrator):
         elif contact is not None:  # from x_n, which is collision-free, toward x̃
             x = x_n.copy()
             dx = target - x_n
-        else:  # from the inertia target (the motion without forces), the first PCG from 0
+        else:  # from the inertia target (the motion without forces), the first PCG from ĥ²g
             x = target.copy()
-            dx = np.zeros_like(x)
+            dx = np.empty_like(x)
+            dx[:] = (h_eff * h_eff) * model.gravity
         if model.has_pins:
             x[model.pinned] = x_n[model.pinned]
             dx[model.pinned] = 0.0
@@ -213,7 +243,7 @@ class NewtonIntegrator(Integrator):
         inertia = model.mass / (h_eff * h_eff)
         tol = solver.newton_tolerance
         report = StepReport()
-        forcing, g_prev, step = solver.tolerance, 0.0, 1.0
+        forcing, g_prev, step, cut = solver.tolerance, 0.0, 1.0, False
         damped = self._damping is not None
         from_x_n = solver.newton_iterations == 1 or contact is not None  # x starts equal to x_n
         if damped and not from_x_n:
@@ -237,7 +267,11 @@ class NewtonIntegrator(Integrator):
                 elastic += contact.assemble(x, grad, matrix)
             g_norm = _filtered_norm(grad, kind, self._normal, constrained)
             if it > 0:
-                dx = (1.0 - step) * dx  # PCG guess: what the line search left of the last step
+                # PCG guess: what the line search left of the last step; after a step that CCD
+                # cut short, zero: the barrier it ran into has changed the Hessian by up to
+                # 1e22·m/ĥ², and the old direction (into the barrier) still met the loose
+                # forcing term with no PCG iteration, so Newton repeated it until it gave up
+                dx = np.zeros_like(dx) if cut else (1.0 - step) * dx
                 forcing = eisenstat_walker(g_norm, g_prev, forcing, solver.tolerance)
             g_prev = g_norm
             # moving pins and animated colliders short of their end-of-step positions move
@@ -263,6 +297,7 @@ class NewtonIntegrator(Integrator):
             step = 1.0
             if contact is not None:  # from the collision-free fraction of the step
                 step = contact.max_step(dx)
+            cut = step < 1.0
             if (solver.line_search or contact is not None) and not prescribed:
                 step = self._line_search(x, dx, base, target, elastic, h_eff, step, contact)
             elif damped:

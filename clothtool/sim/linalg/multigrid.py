@@ -26,7 +26,8 @@ import numpy as np
 from numba import njit
 
 from clothtool.sim.filter import FREE, PINNED, SLIDING
-from clothtool.vec3 import inverse3
+from clothtool.sim.linalg.blocks import BlockPattern
+from clothtool.vec3 import spd_inverse3
 
 COARSEST = 48  # nodes at which the hierarchy stops (dense Cholesky of ≤ 3·48 unknowns)
 OMEGA = 0.6  # Jacobi smoothing weight (λmax(D⁻¹A) ≤ 2 for these matrices)
@@ -85,16 +86,14 @@ class Hierarchy:
     @classmethod
     def for_mesh(cls, pattern, faces):
         """The hierarchy of a matrix pattern whose aggregation follows the triangles."""
-        from clothtool.sim.blocksparse import BlockPattern
-
         triangles = BlockPattern(pattern.n, faces)
         return cls(pattern.row_ptr, pattern.col, graph=(triangles.row_ptr, triangles.col))
 
     def setup(self, matrix, constraints):
-        """Coarse matrices of a :class:`~clothtool.sim.blocksparse.BlockMatrix` filtered by a
-        :class:`~clothtool.sim.blocksparse.ConstraintFilter` (done again inside every solve)."""
+        """Coarse matrices of a :class:`~clothtool.sim.linalg.blocks.BlockMatrix` filtered by a
+        :class:`~clothtool.sim.linalg.blocks.ConstraintFilter` (done again inside every solve)."""
         setup_levels(matrix.values, constraints.kind, constraints.normal, constraints.active,
-                     self.arrays)
+                     matrix.floor, self.arrays)
 
     def apply(self, rhs, out):
         """out = B rhs (one cycle; :meth:`setup` first)."""
@@ -147,16 +146,6 @@ NO_MULTIGRID = (np.zeros(1, np.int64), np.zeros(1, np.int64), np.zeros(1, np.int
                 np.zeros((0, 3)), np.zeros((0, 3)), np.zeros((0, 3)))
 
 
-def make_preconditioner(name, pattern, faces):
-    """``solver.preconditioner`` for a matrix pattern: a :class:`Hierarchy` for
-    ``multigrid`` (block Jacobi on meshes too small to coarsen), else block Jacobi."""
-    from clothtool.sim.blocksparse import BlockJacobi
-
-    if name == "multigrid" and pattern.n > COARSEST:
-        return Hierarchy.for_mesh(pattern, faces)
-    return BlockJacobi(pattern.n)
-
-
 @njit(cache=True)
 def _filtered_block(b, i, j, kind, normal, out):
     """out = S_i B S_j (+ (I − S_i) on the diagonal, so held vertices stay non-singular)."""
@@ -187,15 +176,31 @@ def _filtered_block(b, i, j, kind, normal, out):
 
 
 @njit(cache=True)
-def setup_levels(fine, kind, normal, constrained, mg):
-    """Coarse matrices, block-diagonal inverses of every level, Cholesky of the coarsest."""
+def setup_levels(fine, kind, normal, constrained, floor, mg):
+    """Coarse matrices, block-diagonal inverses of every level, Cholesky of the coarsest.
+
+    ``floor`` (N,): a lower bound of the eigenvalues of each fine diagonal block (the inertia
+    m/ĥ²; zeros when unknown). A coarse block's bound is the sum of its aggregate's (the
+    Galerkin block of an aggregate is Σ its fine blocks, PSD terms on top of Σ floors I); a
+    pinned vertex's filtered block is I (bound 1), a sliding one's at least min(floor, 1).
+    The block inverses keep to these bounds (:func:`~clothtool.vec3.spd_inverse3`): contact
+    barriers near their singularity store blocks of 1e22·m/ĥ² whose small eigenvalues
+    rounding has erased, and the plain cofactor inverse divided by a zero determinant."""
     node_off, block_off, row_ptr, row_off, col, agg, slot_map, values, diag_inv, coarsest = mg[:10]
     levels = node_off.shape[0] - 1
     base = block_off[1]
     values[:, :, :] = 0.0
+    bound = np.zeros(node_off[-1])
     block = np.empty((3, 3))
     # level 0: filtered fine blocks → diagonal inverses and the level-1 sums
     for i in range(node_off[1]):
+        lower = floor[i]
+        if constrained and kind[i] == PINNED:
+            lower = 1.0
+        elif constrained and kind[i] == SLIDING:
+            lower = min(lower, 1.0)
+        bound[i] = lower
+        bound[node_off[1] + agg[i]] += lower
         for s in range(row_ptr[i], row_ptr[i + 1]):
             j = col[s]
             if constrained and (kind[i] != FREE or kind[j] != FREE):
@@ -203,7 +208,7 @@ def setup_levels(fine, kind, normal, constrained, mg):
             else:
                 block[:, :] = fine[s]
             if j == i:
-                inverse3(block, diag_inv[i])
+                spd_inverse3(block, lower, diag_inv[i])
             target = values[slot_map[s]]
             for p in range(3):
                 for q in range(3):
@@ -211,10 +216,12 @@ def setup_levels(fine, kind, normal, constrained, mg):
     for lev in range(1, levels):
         n0, b0, r0 = node_off[lev], block_off[lev], row_off[lev]
         for i in range(node_off[lev + 1] - n0):
+            if lev < levels - 1:
+                bound[node_off[lev + 1] + agg[n0 + i]] += bound[n0 + i]
             for s in range(row_ptr[r0 + i], row_ptr[r0 + i + 1]):
                 src = values[b0 + s - base]
                 if col[b0 + s] == i:
-                    inverse3(src, diag_inv[n0 + i])
+                    spd_inverse3(src, bound[n0 + i], diag_inv[n0 + i])
                 if lev < levels - 1:
                     target = values[block_off[lev + 1] + slot_map[b0 + s] - base]
                     for p in range(3):

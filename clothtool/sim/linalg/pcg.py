@@ -1,0 +1,193 @@
+"""Preconditioned conjugate gradients on a filtered block matrix, and its preconditioners.
+
+The solver is preconditioned conjugate gradients (Hestenes & Stiefel 1952), and
+constraints are handled by Baraff–Witkin's filter (1998, §5.3): S_v = I for a free
+vertex, 0 for a pinned one, I − n nᵀ for one held on a collider surface with normal n.
+The residual and every search direction are filtered, so the constrained components
+of the solution keep their initial (prescribed) values exactly. The stop test is on
+the true relative residual ‖S(b − Ax)‖ / ‖S b‖: when the recurrence says converged,
+the residual is recomputed from its definition and iteration continues if that one
+is not.
+
+The Python side passes a :class:`~clothtool.sim.linalg.blocks.BlockMatrix` (pattern +
+values), a :class:`~clothtool.sim.linalg.blocks.ConstraintFilter` (kind, normal) and a
+preconditioner object (:class:`BlockJacobi` or
+:class:`~clothtool.sim.linalg.multigrid.Hierarchy`, :func:`make_preconditioner`); the
+numba kernels underneath take the plain arrays these unpack to. A pair operator
+(:mod:`clothtool.sim.linalg.pairs`, ``extra``) adds its off-diagonal part matrix-free.
+"""
+
+import numpy as np
+from numba import njit
+
+from clothtool.sim.filter import PINNED, apply_filter
+from clothtool.sim.linalg.blocks import block_multiply, residual
+from clothtool.sim.linalg.multigrid import COARSEST, NO_MULTIGRID, Hierarchy, vcycle
+from clothtool.sim.linalg.pairs import NO_PAIRS, pairs_offdiagonal_multiply
+from clothtool.vec3 import spd_inverse3
+
+
+class BlockJacobi:
+    """The block-Jacobi preconditioner: the inverses of the 3×3 diagonal blocks."""
+
+    arrays = NO_MULTIGRID
+
+    def __init__(self, n_vertices):
+        self.inverse = np.zeros((n_vertices, 3, 3))
+
+    def setup(self, matrix, constraints):
+        """Invert the diagonal blocks of a :class:`BlockMatrix` (pinned vertices: zero)."""
+        block_jacobi(matrix.values, matrix.pattern.diag, constraints.kind, matrix.floor,
+                     self.inverse)
+
+
+def make_preconditioner(name, pattern, faces):
+    """``solver.preconditioner`` for a matrix pattern: a :class:`Hierarchy` for
+    ``multigrid`` (block Jacobi on meshes too small to coarsen), else block Jacobi."""
+    if name == "multigrid" and pattern.n > COARSEST:
+        return Hierarchy.for_mesh(pattern, faces)
+    return BlockJacobi(pattern.n)
+
+
+@njit(cache=True)
+def _dot(a, b):
+    """Σ a·b over (N, 3) arrays."""
+    total = 0.0
+    for i in range(a.shape[0]):
+        total += a[i, 0] * b[i, 0] + a[i, 1] * b[i, 1] + a[i, 2] * b[i, 2]
+    return total
+
+
+@njit(cache=True)
+def _apply_inverse(inv, r, z):
+    for i in range(r.shape[0]):
+        b = inv[i]
+        z[i, 0] = b[0, 0] * r[i, 0] + b[0, 1] * r[i, 1] + b[0, 2] * r[i, 2]
+        z[i, 1] = b[1, 0] * r[i, 0] + b[1, 1] * r[i, 1] + b[1, 2] * r[i, 2]
+        z[i, 2] = b[2, 0] * r[i, 0] + b[2, 1] * r[i, 1] + b[2, 2] * r[i, 2]
+
+
+@njit(cache=True)
+def block_jacobi(values, diag, kind, floor, inv):
+    """inv = inverses of the diagonal blocks (zero for pinned vertices), each with its
+    eigenvalues at least floor[v] (:func:`~clothtool.vec3.spd_inverse3`)."""
+    for i in range(diag.shape[0]):
+        if kind[i] != PINNED:
+            spd_inverse3(values[diag[i]], floor[i], inv[i])
+        else:
+            inv[i] = 0.0
+
+
+@njit(cache=True)
+def _axpy(alpha, x, y):
+    """y += alpha x."""
+    for i in range(x.shape[0]):
+        y[i, 0] += alpha * x[i, 0]
+        y[i, 1] += alpha * x[i, 1]
+        y[i, 2] += alpha * x[i, 2]
+
+
+@njit(cache=True)
+def _xpby(x, beta, y):
+    """y = x + beta y."""
+    for i in range(x.shape[0]):
+        y[i, 0] = x[i, 0] + beta * y[i, 0]
+        y[i, 1] = x[i, 1] + beta * y[i, 1]
+        y[i, 2] = x[i, 2] + beta * y[i, 2]
+
+
+@njit(cache=True)
+def _precondition(inv, r, kind, normal, constrained, z, mg):
+    """z = S P⁻¹ r: block Jacobi, or the multigrid V-cycle when mg holds a hierarchy."""
+    if len(mg[0]) > 1:
+        vcycle(r, z, mg)
+    else:
+        _apply_inverse(inv, r, z)
+    if constrained:
+        apply_filter(z, kind, normal)
+
+
+def filtered_pcg(matrix, b, x, constraints, tol, max_iter, preconditioner, extra=NO_PAIRS):
+    """Solve S(A x − b) = 0 from x, whose constrained components (I − S)x stay as given.
+
+    ``matrix``: a :class:`BlockMatrix`; ``constraints``: a :class:`ConstraintFilter`
+    (S); ``preconditioner``: :class:`BlockJacobi` or a
+    :class:`~clothtool.sim.linalg.multigrid.Hierarchy`, set up here for this matrix and filter;
+    ``extra``: a pair operator (:mod:`clothtool.sim.linalg.pairs`) whose off-diagonal part is
+    applied matrix-free; its diagonal blocks are already in the matrix. Stops when the true relative residual ‖S(b − Ax)‖ / ‖S b‖ ≤ ``tol`` or after
+    ``max_iter`` iterations. Returns (iterations, relative true residual).
+    """
+    preconditioner.setup(matrix, constraints)
+    return filtered_pcg_arrays(matrix.pattern.row_ptr, matrix.pattern.col, matrix.values, b, x,
+                               constraints.kind, constraints.normal, constraints.active, tol,
+                               max_iter, preconditioner.inverse, preconditioner.arrays, extra)
+
+
+@njit(cache=True)
+def _residual_with(row_ptr, col, values, extra, b, x, r):
+    """r = b − (A + H_extra) x."""
+    residual(row_ptr, col, values, b, x, r)
+    if extra[3] > 0:
+        pairs_offdiagonal_multiply(extra, x, r, -1.0)
+
+
+@njit(cache=True)
+def filtered_pcg_arrays(row_ptr, col, values, b, x, kind, normal, constrained, tol, max_iter,
+                        inv, mg, extra):
+    """:func:`filtered_pcg` on plain arrays: ``constrained`` False skips the filter; ``inv``
+    the block-Jacobi inverses (:func:`block_jacobi`) and ``mg`` ``NO_MULTIGRID``, or ``mg``
+    the arrays of a multigrid hierarchy after ``setup_levels``; ``extra`` the matrix-free
+    contact blocks (``NO_PAIRS`` for none)."""
+    n = b.shape[0]
+    sb = b.copy()
+    if constrained:
+        apply_filter(sb, kind, normal)
+    b_norm = np.sqrt(_dot(sb, sb))
+    r = np.empty((n, 3))
+    z = np.empty((n, 3))
+    q = np.empty((n, 3))
+    _residual_with(row_ptr, col, values, extra, b, x, r)
+    if constrained:
+        apply_filter(r, kind, normal)
+    if b_norm == 0.0:
+        b_norm = 1.0  # nothing to solve for but the prescribed components: absolute test
+    _precondition(inv, r, kind, normal, constrained, z, mg)
+    p = z.copy()
+    rz = _dot(r, z)
+    res = np.sqrt(_dot(r, r)) / b_norm
+    it = 0
+    while it < max_iter:
+        if res <= tol:
+            # confirm on the true residual before stopping
+            _residual_with(row_ptr, col, values, extra, b, x, r)
+            if constrained:
+                apply_filter(r, kind, normal)
+            res = np.sqrt(_dot(r, r)) / b_norm
+            if res <= tol:
+                break
+            _precondition(inv, r, kind, normal, constrained, z, mg)
+            p[:] = z
+            rz = _dot(r, z)
+        block_multiply(row_ptr, col, values, p, q)
+        if extra[3] > 0:
+            pairs_offdiagonal_multiply(extra, p, q, 1.0)
+        if constrained:
+            apply_filter(q, kind, normal)
+        pq = _dot(p, q)
+        if pq <= 0.0:
+            break
+        alpha = rz / pq
+        _axpy(alpha, p, x)
+        _axpy(-alpha, q, r)
+        _precondition(inv, r, kind, normal, constrained, z, mg)
+        rz_new = _dot(r, z)
+        _xpby(z, rz_new / rz, p)
+        rz = rz_new
+        res = np.sqrt(_dot(r, r)) / b_norm
+        it += 1
+    if it == max_iter:
+        _residual_with(row_ptr, col, values, extra, b, x, r)
+        if constrained:
+            apply_filter(r, kind, normal)
+        res = np.sqrt(_dot(r, r)) / b_norm
+    return it, res
