@@ -16,7 +16,7 @@ from __future__ import annotations
 import difflib
 import math
 import os
-from dataclasses import dataclass, field, fields, is_dataclass
+from dataclasses import dataclass, field, fields, is_dataclass, replace
 from pathlib import Path
 from typing import Mapping
 
@@ -26,7 +26,8 @@ from clothtool.errors import InputError
 from clothtool.sim import methods
 
 PLANES = ("xy", "xz", "yz")
-BEND_MODELS = ("dihedral", "quadratic")
+BEND_MODELS = ("hessian", "dihedral", "quadratic")
+STANDARD_GRAVITY = 9.81  # m/s², of bending_length → bend (k_b = ρ g c³)
 METHODS = tuple(methods.METHODS)
 PRECONDITIONERS = ("jacobi", "multigrid")
 PBD_VARIANTS = ("gauss-seidel", "jacobi")
@@ -209,7 +210,8 @@ class Material:
     """Areal density (kg/m²), membrane stiffnesses (N/m), bending stiffness (N·m), damping (s).
 
     ``stretch`` and ``rest_stretch`` are a number or [along u (warp), along v (weft)];
-    ``rest_stretch`` holds Baraff–Witkin's rest length factors b_u, b_v.
+    ``rest_stretch`` holds Baraff–Witkin's rest length factors b_u, b_v. ``bending_length``
+    c (m, the cantilever test's) may replace ``bend``: k_b = ρ g c³ with g = 9.81 m/s².
     """
 
     density: float = _field(0.2, _number(minimum=0, exclusive=True))
@@ -218,7 +220,8 @@ class Material:
     shear: float = _field(50.0, _number(minimum=0))
     bend: float = _field(1.0e-5, _number(minimum=0))
     damping: float = _field(0.01, _number(minimum=0))
-    bend_model: str = _field("dihedral", _choice(BEND_MODELS))
+    bend_model: str = _field("hessian", _choice(BEND_MODELS))
+    bending_length: float | None = _field(None, _number(minimum=0))
 
 
 @dataclass(frozen=True)
@@ -525,6 +528,8 @@ def _build_section(cls, raw, prefix, base):
         else:
             kwargs[f.name] = f.metadata["check"](value, key)
     section = cls(**kwargs)
+    if cls is Material and section.bending_length is not None:
+        section = _bend_from_bending_length(section, raw, prefix)
     if cls is MeshSpec:
         if (section.grid is None) == (section.ply is None):
             raise InputError("mesh needs exactly one of mesh.grid and mesh.ply")
@@ -541,6 +546,14 @@ def _build_section(cls, raw, prefix, base):
         section = MeshCollider(**{**{f.name: getattr(section, f.name) for f in fields(section)},
                                   given[0]: base / getattr(section, given[0])})
     return section
+
+
+def _bend_from_bending_length(material, raw, prefix):
+    """``bend`` = ρ g c³ from ``bending_length`` c and ``density`` ρ (not both bend and c)."""
+    if "bend" in raw:
+        raise InputError(f"{prefix}: give one of bend (N·m) and bending_length (m), not both")
+    c = material.bending_length
+    return replace(material, bend=material.density * STANDARD_GRAVITY * c ** 3)
 
 
 def _build_colliders(value, key, base):
