@@ -73,9 +73,10 @@ def _rasterise(p, faces, radius, pixels):
         lo = np.floor((tri.min(axis=0) + radius) / cell).astype(int).clip(0, pixels - 1)
         hi = np.ceil((tri.max(axis=0) + radius) / cell).astype(int).clip(0, pixels - 1)
         gx, gy = np.meshgrid(centres[lo[0]:hi[0] + 1], centres[lo[1]:hi[1] + 1], indexing="ij")
-        inside = np.ones(gx.shape, np.bool_)
-        d = [np.cross(tri[(k + 1) % 3] - tri[k], np.stack([gx - tri[k][0], gy - tri[k][1]], -1))
-             for k in range(3)]
+        d = []
+        for k in range(3):  # the side of edge k each pixel centre is on
+            ex, ey = tri[(k + 1) % 3] - tri[k]
+            d.append(ex * (gy - tri[k][1]) - ey * (gx - tri[k][0]))
         inside = ((d[0] >= 0) & (d[1] >= 0) & (d[2] >= 0)) | ((d[0] <= 0) & (d[1] <= 0) & (d[2] <= 0))
         covered[lo[0]:hi[0] + 1, lo[1]:hi[1] + 1] |= inside
     return covered.sum() * cell * cell
@@ -84,10 +85,10 @@ def _rasterise(p, faces, radius, pixels):
 # ---------------------------------------------------------------------------- specimens
 
 
-def specimen_model(uv, faces, pinned, material, folder):
+def specimen_model(uv, faces, pinned, material, folder, gravity=(0.0, 0.0, -STANDARD_GRAVITY)):
     """A :class:`~clothtool.sim.model.Model` of the pattern laid flat in the xy plane (its uv as
     the rest shape, written as ``folder/specimen.ply``), ``pinned`` vertex indices held,
-    gravity −9.81 m/s² along z; ``material``: the config's material section (a dict)."""
+    ``gravity`` (m/s², default down along z); ``material``: the config's material section."""
     from pathlib import Path
 
     from clothtool.io.ply import write_ply
@@ -98,7 +99,7 @@ def specimen_model(uv, faces, pinned, material, folder):
     positions = np.concatenate([uv, np.zeros((len(uv), 1))], axis=1)
     write_ply(path, positions, faces, vertex_properties={"s": uv[:, 0].copy(), "t": uv[:, 1].copy()})
     config = load_config({"mesh": {"ply": str(path)}, "material": dict(material),
-                          "scene": {"gravity": [0.0, 0.0, -STANDARD_GRAVITY],
+                          "scene": {"gravity": [float(g) for g in gravity],
                                     "pins": [int(v) for v in pinned]}})
     return build_model(config)
 
