@@ -4,6 +4,7 @@
     python -m benchmarks analyze sim     # only bench_analyze.py and bench_sim.py
     python -m benchmarks obj             # OBJ read speed against trimesh and meshio (bench_obj.py)
     python -m benchmarks tet             # tetrahedra: kernel vs numpy SVD, readers, 200k × 50 frames
+    python -m benchmarks textile         # cantilever, hanging strip, drape; what bending costs
 """
 
 import importlib
