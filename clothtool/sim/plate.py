@@ -31,7 +31,7 @@ twist and saddle for free). Q is built once from the rest pattern:
 
 A cylinder bent along or across any triangulation stores k_b κ²/2 per unit area, and the
 cantilever test (ASTM D1388) droops as the elastica says (``tests/test_textile.py``).
-The Hessian k_b Q ⊗ I₃ is constant and PSD; Q couples each vertex with its two-ring.
+The Hessian k_b Q ⊗ I₃ is constant and PSD; Q couples each vertex with (part of) its two-ring.
 """
 
 import numpy as np
@@ -39,6 +39,7 @@ import scipy.sparse as sps
 from numba import njit
 
 SEEN = 1e-3  # a singular value of B_v/A_v below this is a component vertex v does not see
+PRUNE = 1e-10  # |Q_ij| ≤ PRUNE·√(Q_ii Q_jj) is rounding of a cancelled entry: dropped
 SQRT2 = np.sqrt(2.0)
 
 
@@ -76,10 +77,14 @@ def hessian_bending_matrix(uv, faces):
     for r in range(3):
         for c in range(3):
             q = q + hat[r].T @ sps.diags(mass * weight[:, r, c]) @ hat[c]
-    q = q.tocsr()
-    q = 0.5 * (q + q.T)
+    q = (0.5 * (q + q.T)).tocoo()
+    # entries that cancel to rounding (half of them on clothtool's grid: its diagonals carry no
+    # weak-Hessian weight) would only widen the solver's matrix
+    diag = np.abs(q.diagonal())
+    keep = np.abs(q.data) > PRUNE * np.sqrt(diag[q.row] * diag[q.col])
+    q = sps.csr_matrix((q.data[keep], (q.row[keep], q.col[keep])), shape=(n, n))
     q.sort_indices()
-    return q.tocsr()
+    return q
 
 
 def _hat_gradients(uv, faces):
