@@ -52,7 +52,7 @@ class Model:
     pattern: BlockPattern
     tri_slots: np.ndarray  # (M, 9)
     hinge_slots: np.ndarray  # (H, 16)
-    constant_hessian: np.ndarray | None  # block values of the quadratic bending Hessian
+    constant_hessian: np.ndarray | None  # block values of the hessian or quadratic bending Hessian
     pin_motions: list = field(default_factory=list)  # PinMotion per moving pin group
     contact: object = None  # ContactScene: mesh colliders and self-collision, or None
 
