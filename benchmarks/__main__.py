@@ -5,6 +5,7 @@
     python -m benchmarks obj             # OBJ read speed against trimesh and meshio (bench_obj.py)
     python -m benchmarks tet             # tetrahedra: kernel vs numpy SVD, readers, 200k × 50 frames
     python -m benchmarks sweep           # clothtool sweep's overhead against N/jobs × one run
+    python -m benchmarks textile         # cantilever, hanging strip, drape; what bending costs
 """
 
 import importlib

@@ -27,9 +27,9 @@ def setup(nx=5, ny=4, solver=None, **material):
     return model, make_integrator(model, cfg.solver, cfg.step), cfg.step
 
 
-@pytest.mark.parametrize("material", [{}, {"bend_model": "quadratic"}, {"damping": 0.0},
-                                      {"bend": 0.0}],
-                         ids=["dihedral", "quadratic", "undamped", "no-bending"])
+@pytest.mark.parametrize("material", [{}, {"bend_model": "dihedral"}, {"bend_model": "quadratic"},
+                                      {"damping": 0.0}, {"bend": 0.0}],
+                         ids=["hessian", "dihedral", "quadratic", "undamped", "no-bending"])
 def test_vertex_systems_are_the_blocks_of_the_assembled_potential(material):
     """g_i and H_ii of every vertex equal row i of ∇E = M(x − y)/h² + ∇W(x) + D(x − x_n) and
     the diagonal block of M/h² + K(x) + D, D = (β/h) K(x_n), assembled as the implicit
@@ -97,11 +97,11 @@ def test_colouring_is_valid_and_deterministic():
         group = vertices[ptr[c]:ptr[c + 1]]
         assert len(group) and np.all(np.diff(group) > 0)
         colour[group] = c
-    for elements in (model.faces, model.hinge):
+    for elements in vbd.coupled:  # triangles, hinges and the plate's vertex pairs
         for e in elements:
             cs = colour[e][colour[e] >= 0]
-            assert len(set(cs)) == len(cs), e  # no colour twice in one triangle or hinge
-    again = colour_groups(model.n_vertices, [model.faces, model.hinge], model.free)
+            assert len(set(cs)) == len(cs), e  # no colour twice in one element
+    again = colour_groups(model.n_vertices, vbd.coupled, model.free)
     assert np.array_equal(again[0], ptr) and np.array_equal(again[1], vertices)
     assert len(ptr) - 1 <= 12  # a grid with hinges needs few colours
 

@@ -30,7 +30,8 @@ from clothtool.sim.schema import (Section, as_dict, choice, flag, integer, numbe
 __all__ = ["load_config", "as_dict", "Config", "SECTIONS", "COLLIDER_KINDS"]
 
 PLANES = ("xy", "xz", "yz")
-BEND_MODELS = ("dihedral", "quadratic")
+BEND_MODELS = ("hessian", "dihedral", "quadratic")
+STANDARD_GRAVITY = 9.81  # m/s², of bending_length → bend (k_b = ρ g c³)
 METHODS = tuple(methods.METHODS)
 PRECONDITIONERS = ("jacobi", "multigrid")
 PBD_VARIANTS = ("gauss-seidel", "jacobi", "hierarchical")
@@ -76,7 +77,8 @@ class Material(Section):
     """Areal density (kg/m²), membrane stiffnesses (N/m), bending stiffness (N·m), damping (s).
 
     ``stretch`` and ``rest_stretch`` are a number or [along u (warp), along v (weft)];
-    ``rest_stretch`` holds Baraff–Witkin's rest length factors b_u, b_v.
+    ``rest_stretch`` holds Baraff–Witkin's rest length factors b_u, b_v. ``bending_length``
+    c (m, the cantilever test's) may replace ``bend``: k_b = ρ g c³ with g = 9.81 m/s².
     """
 
     density: float = setting(0.2, positive)
@@ -85,7 +87,16 @@ class Material(Section):
     shear: float = setting(50.0, non_negative)
     bend: float = setting(1.0e-5, non_negative)
     damping: float = setting(0.01, non_negative)
-    bend_model: str = setting("dihedral", choice(BEND_MODELS))
+    bend_model: str = setting("hessian", choice(BEND_MODELS))
+    bending_length: float | None = setting(None, positive)
+
+    def finish(self, given, key):
+        """``bend`` = ρ g c³ from ``bending_length`` c and ``density`` ρ (not both bend and c)."""
+        if self.bending_length is None:
+            return self
+        if "bend" in given:
+            raise InputError(f"{key}: give one of bend (N·m) and bending_length (m), not both")
+        return replace(self, bend=self.density * STANDARD_GRAVITY * self.bending_length ** 3)
 
 
 # ---------------------------------------------------------------------------- scene

@@ -5,8 +5,8 @@ An elastic energy has a block :attr:`pattern` (which vertex pairs it couples),
 :meth:`assemble` (W, ∇W and the PSD-projected Hessian K in block-CSR form).
 
 - :class:`FemElastic`: the finite-element cloth of ``implicit`` and ``explicit``:
-  Baraff–Witkin stretch and shear in Kim's form (``membrane``) plus dihedral or
-  quadratic bending (``bending``);
+  Baraff–Witkin stretch and shear in Kim's form (``membrane``) plus plate (``plate``),
+  dihedral or quadratic bending (``bending``);
 - :class:`SpringElastic`: the spring network of ``mass-spring``
   (``springs``), Σ ½k_e(‖x_i − x_j‖ − L_e)² with PSD-clamped spring Hessians.
 """
@@ -18,6 +18,7 @@ import numpy as np
 from clothtool.sim.bending import dihedral_assemble, dihedral_total_energy, quadratic_gradient
 from clothtool.sim.linalg.blocks import BlockPattern
 from clothtool.sim.membrane import membrane_assemble, membrane_total_energy
+from clothtool.sim.plate import hessian_gradient
 from clothtool.sim.springs import spring_assemble, spring_energy
 
 
@@ -27,7 +28,9 @@ def fem_elastic_energy(model, x):
     if model.has_membrane:
         total += membrane_total_energy(x, model.faces, model.dr_inv, model.area,
                                        model.stretch, model.k_shear)
-    if model.bend_model == "dihedral":
+    if model.bend_model == "hessian":
+        total += hessian_gradient(x, *model.plate, np.zeros((0, 3)))
+    elif model.bend_model == "dihedral":
         total += dihedral_total_energy(x, model.hinge, model.hinge_rest_angle, model.hinge_coef)
     elif model.bend_model == "quadratic":  # an empty gradient array: energy only
         total += quadratic_gradient(x, model.hinge, model.hinge_weights, model.hinge_coef,
@@ -36,7 +39,7 @@ def fem_elastic_energy(model, x):
 
 
 class FemElastic:
-    """Stretch + shear (Kim 2020) + dihedral or quadratic bending, on the Model's pattern."""
+    """Stretch + shear (Kim 2020) + plate, dihedral or quadratic bending, on the Model's pattern."""
 
     def __init__(self, model):
         self.model = model
@@ -57,7 +60,9 @@ class FemElastic:
         if model.has_membrane:
             total += membrane_assemble(x, model.faces, model.dr_inv, model.area, model.stretch,
                                        model.k_shear, model.tri_slots, grad, values)
-        if model.bend_model == "dihedral":
+        if model.bend_model == "hessian":  # its constant Hessian is in constant_hessian
+            total += hessian_gradient(x, *model.plate, grad)
+        elif model.bend_model == "dihedral":
             total += dihedral_assemble(x, model.hinge, model.hinge_rest_angle, model.hinge_coef,
                                        model.hinge_slots, grad, values)
         elif model.bend_model == "quadratic":

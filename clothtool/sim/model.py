@@ -37,11 +37,12 @@ class Model:
     k_shear: float
     damping: float  # s
     gravity: np.ndarray  # (3,)
-    bend_model: str | None  # "dihedral", "quadratic", or None when bend = 0
+    bend_model: str | None  # "hessian", "dihedral", "quadratic", or None when bend = 0
     hinge: np.ndarray  # (H, 4) i, j, k, l
     hinge_rest_angle: np.ndarray  # (H,)
     hinge_coef: np.ndarray  # (H,) c = k_b ‖ē‖² / (2(Ā_k + Ā_l))
     hinge_weights: np.ndarray | None  # (H, 4) for the quadratic model
+    plate: tuple | None  # (ptr, col, val): k_b Q of the hessian model, CSR (clothtool.sim.plate)
     pinned: np.ndarray  # (P,) vertex indices
     free: np.ndarray  # (N,) bool
     kind: np.ndarray  # (N,) int8 constraint kind: FREE or PINNED
@@ -51,7 +52,7 @@ class Model:
     pattern: BlockPattern
     tri_slots: np.ndarray  # (M, 9)
     hinge_slots: np.ndarray  # (H, 16)
-    constant_hessian: np.ndarray | None  # block values of the quadratic bending Hessian
+    constant_hessian: np.ndarray | None  # block values of the hessian or quadratic bending Hessian
     pin_motions: list = field(default_factory=list)  # PinMotion per moving pin group
     contact: object = None  # ContactScene: mesh colliders and self-collision, or None
 
@@ -132,6 +133,12 @@ def build_model(config):
         raise InputError(f"mesh: vertex {np.flatnonzero(mass == 0)[0]} belongs to no triangle")
 
     bend_model, hinge, rest_angle, coef, weights = _bending(mesh, area, mat)
+    plate = None
+    if bend_model == "hessian":
+        from clothtool.sim.plate import hessian_bending_matrix
+
+        q = hessian_bending_matrix(mesh.uv, faces) * mat.bend
+        plate = (q.indptr.astype(np.int64), q.indices.astype(np.int64), q.data)
     pinned, pin_motions = resolve_pin_entries(config.scene.pins, n, mesh.grid_shape)
     free = np.ones(n, dtype=np.bool_)
     free[pinned] = False
@@ -148,10 +155,21 @@ def build_model(config):
     plane_arr = np.array([[*c.point, *(np.asarray(c.normal) / np.linalg.norm(c.normal))]
                           for c in planes], dtype=np.float64).reshape(-1, 6)
 
-    pattern = BlockPattern(n, faces, *([hinge] if bend_model else []))
+    hinged = bend_model in ("dihedral", "quadratic")
+    pairs = None
+    if plate is not None:
+        rows = np.repeat(np.arange(n), np.diff(plate[0]))
+        pairs = np.stack([rows, plate[1]], axis=1)
+    pattern = BlockPattern(n, faces, *([hinge] if hinged else []),
+                           *([pairs] if pairs is not None else []))
     tri_slots = pattern.slots(faces)
-    hinge_slots = pattern.slots(hinge) if bend_model else np.zeros((0, 16), np.int64)
+    hinge_slots = pattern.slots(hinge) if hinged else np.zeros((0, 16), np.int64)
     constant = None
+    if pairs is not None:  # k_b Q ⊗ I₃
+        constant = pattern.zeros()
+        slot = pattern.slots(pairs)[:, 1]
+        for p in range(3):
+            constant[slot, p, p] += plate[2]
     if bend_model == "quadratic":
         constant = pattern.zeros()
         w = weights
@@ -164,7 +182,7 @@ def build_model(config):
         stretch=_warp_weft(mat, mesh), k_shear=mat.shear, damping=mat.damping,
         gravity=np.asarray(config.scene.gravity, dtype=np.float64),
         bend_model=bend_model, hinge=hinge, hinge_rest_angle=rest_angle, hinge_coef=coef,
-        hinge_weights=weights, pinned=pinned, free=free, kind=kind,
+        hinge_weights=weights, plate=plate, pinned=pinned, free=free, kind=kind,
         spheres=sphere_arr, planes=plane_arr,
         collision_margin=config.scene.collision_margin,
         pattern=pattern, tri_slots=tri_slots, hinge_slots=hinge_slots, constant_hessian=constant,
@@ -203,9 +221,12 @@ def _bending(mesh, area, material):
     # a uv pattern is flat by definition; a PLY without uv rests in its own shape
     rest_angle = np.zeros(len(hinge)) if mesh.uv is not None else dihedral_angles(r, hinge)
     weights = None
+    model = material.bend_model
+    if model == "hessian" and mesh.uv is None:
+        model = "dihedral"  # a mesh that rests in its own (curved) shape: the dihedral model
     if material.bend_model == "quadratic":
         if np.max(np.abs(rest_angle)) > 1e-6:
             raise InputError("material.bend_model: 'quadratic' needs a flat rest state "
                              "(a grid, or a PLY with uv); use 'dihedral'")
         weights = quadratic_weights(r, hinge)
-    return material.bend_model, hinge, rest_angle, coef, weights
+    return model, hinge, rest_angle, coef, weights

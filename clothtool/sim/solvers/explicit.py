@@ -34,6 +34,7 @@ from clothtool.sim.collide import resolve_collisions
 from clothtool.sim.energy import FemElastic
 from clothtool.sim.integrator import Integrator, StepReport
 from clothtool.sim.membrane import membrane_gradient, membrane_hessian_product
+from clothtool.sim.plate import hessian_gradient, hessian_product
 
 STRETCH_MARGIN = 1.5
 
@@ -59,7 +60,11 @@ def elastic_forces(model, x, v, out):
         if beta > 0.0:
             membrane_hessian_product(x, model.faces, model.dr_inv, model.area, model.stretch,
                                      model.k_shear, beta, v, out)
-    if model.bend_model == "dihedral":
+    if model.bend_model == "hessian":
+        hessian_gradient(x, *model.plate, out)
+        if beta > 0.0:
+            hessian_product(*model.plate, beta, v, out)
+    elif model.bend_model == "dihedral":
         dihedral_gradient(x, model.hinge, model.hinge_rest_angle, model.hinge_coef, out, v, beta,
                           out)
     elif model.bend_model == "quadratic":

@@ -53,7 +53,7 @@ from clothtool.sim.integrator import Integrator, StepReport
 from clothtool.sim.membrane import deformation_gradient, membrane_element, membrane_vertex
 from clothtool.vec3 import load
 
-BEND_NONE, BEND_DIHEDRAL, BEND_QUADRATIC = 0, 1, 2
+BEND_NONE, BEND_DIHEDRAL, BEND_QUADRATIC, BEND_HESSIAN = 0, 1, 2, 3
 CHEBYSHEV_MIN_SWEEPS = 5  # below this Chebyshev is off (docstring)
 SINGULAR = 1e-300  # a 3×3 block whose determinant is below this is left alone (never with mass)
 
@@ -168,6 +168,7 @@ def membrane_damping(x0, x1, x2, dr_inv, area, a, h_f, f_n, damp, g, hmat):
 @njit(cache=True)
 def vertex_system(i, x, x_n, y, mass, inv_h2, faces, dr_inv, area, stretch, k_shear, membrane,
                   tri_ptr, tri_elem, tri_corner, bend, hinge, rest_angle, coef, weights,
+                  plate_ptr, plate_col, plate_val,
                   hinge_ptr, hinge_elem, hinge_corner, damp, tri_damp, tri_f, hinge_damp, g, hmat,
                   g12):
     """g_i (3,) and H_ii (3, 3) of the incremental potential at vertex i (module docstring),
@@ -194,6 +195,15 @@ def vertex_system(i, x, x_n, y, mass, inv_h2, faces, dr_inv, area, stretch, k_sh
                 membrane_damping(load(x, faces[t, 0]), load(x, faces[t, 1]), load(x, faces[t, 2]),
                                  dr_inv[t], area[t], a, tri_damp[t], tri_f[t], damp, g, hmat)
     if bend == BEND_NONE:
+        return
+    if bend == BEND_HESSIAN:  # W = ½ Σ_c x_cᵀ Q x_c: row i of Q x, the block Q_ii I (constant)
+        for k in range(plate_ptr[i], plate_ptr[i + 1]):
+            j, q = plate_col[k], plate_val[k]
+            for p in range(3):
+                g[p] += q * (x[j, p] + damp * (x[j, p] - x_n[j, p]))
+            if j == i:
+                for p in range(3):
+                    hmat[p, p] += q * (1.0 + damp)
         return
     for k in range(hinge_ptr[i], hinge_ptr[i + 1]):
         e, a = hinge_elem[k], hinge_corner[k]
@@ -252,8 +262,8 @@ def _solve3(hm, g, out):
 @njit(cache=True)
 def vbd_sweeps(sweeps, rho, tolerance, scale, vertices, colour_ptr, prev1, prev2, g2, x, x_n, y,
                mass, inv_h2, faces, dr_inv, area, stretch, k_shear, membrane, tri_ptr, tri_elem,
-               tri_corner, bend, hinge, rest_angle, coef, weights, hinge_ptr, hinge_elem,
-               hinge_corner, damp, tri_damp, tri_f, hinge_damp):
+               tri_corner, bend, hinge, rest_angle, coef, weights, plate_ptr, plate_col, plate_val,
+               hinge_ptr, hinge_elem, hinge_corner, damp, tri_damp, tri_f, hinge_damp):
     """Up to ``sweeps`` sweeps on x in place: colour by colour, one Newton step on each vertex
     of the colour (no two share an element, so the order within a colour does not matter),
     then, with ρ = ``rho`` > 0, the Chebyshev mix (module docstring; prev1, prev2: x⁽ᵏ⁻¹⁾,
@@ -272,8 +282,8 @@ def vbd_sweeps(sweeps, rho, tolerance, scale, vertices, colour_ptr, prev1, prev2
             i = vertices[j]
             vertex_system(i, x, x_n, y, mass, inv_h2, faces, dr_inv, area, stretch, k_shear,
                           membrane, tri_ptr, tri_elem, tri_corner, bend, hinge, rest_angle, coef,
-                          weights, hinge_ptr, hinge_elem, hinge_corner, damp, tri_damp, tri_f,
-                          hinge_damp, g, hm, g12)
+                          weights, plate_ptr, plate_col, plate_val, hinge_ptr, hinge_elem,
+                          hinge_corner, damp, tri_damp, tri_f, hinge_damp, g, hm, g12)
             g2[j] = g[0] * g[0] + g[1] * g[1] + g[2] * g[2]
             if _solve3(hm, g, dx):
                 for p in range(3):
@@ -303,15 +313,16 @@ def vbd_sweeps(sweeps, rho, tolerance, scale, vertices, colour_ptr, prev1, prev2
 @njit(cache=True)
 def gradient_norm(vertices, x, x_n, y, mass, inv_h2, faces, dr_inv, area, stretch, k_shear,
                   membrane, tri_ptr, tri_elem, tri_corner, bend, hinge, rest_angle, coef, weights,
-                  hinge_ptr, hinge_elem, hinge_corner, damp, tri_damp, tri_f, hinge_damp):
+                  plate_ptr, plate_col, plate_val, hinge_ptr, hinge_elem, hinge_corner, damp,
+                  tri_damp, tri_f, hinge_damp):
     """‖∇E(x)‖ over the free vertices (their g_i at x, nothing moved)."""
     g, hm, g12 = np.empty(3), np.empty((3, 3)), np.empty(12)
     total = 0.0
     for j in range(vertices.shape[0]):
         vertex_system(vertices[j], x, x_n, y, mass, inv_h2, faces, dr_inv, area, stretch, k_shear,
                       membrane, tri_ptr, tri_elem, tri_corner, bend, hinge, rest_angle, coef,
-                      weights, hinge_ptr, hinge_elem, hinge_corner, damp, tri_damp, tri_f,
-                      hinge_damp, g, hm, g12)
+                      weights, plate_ptr, plate_col, plate_val, hinge_ptr, hinge_elem,
+                      hinge_corner, damp, tri_damp, tri_f, hinge_damp, g, hm, g12)
         total += g[0] * g[0] + g[1] * g[1] + g[2] * g[2]
     return np.sqrt(total)
 
@@ -327,11 +338,19 @@ class VertexBlockDescent(Integrator):
     def __init__(self, model, solver, h):
         super().__init__(model, solver, h)
         n = model.n_vertices
-        self.bend = {None: BEND_NONE, "dihedral": BEND_DIHEDRAL,
-                     "quadratic": BEND_QUADRATIC}[model.bend_model]
+        self.bend = {None: BEND_NONE, "dihedral": BEND_DIHEDRAL, "quadratic": BEND_QUADRATIC,
+                     "hessian": BEND_HESSIAN}[model.bend_model]
         self.tri = incidence(model.faces, n)
         self.hinges = incidence(model.hinge, n)
-        self.colour_ptr, self.vertices = colour_groups(n, [model.faces, model.hinge], model.free)
+        empty = np.zeros(0, np.int64)
+        self.plate = model.plate if model.plate is not None else (np.zeros(1, np.int64), empty,
+                                                                  np.zeros(0))
+        self.coupled = [model.faces, model.hinge]  # elements whose vertices interact
+        if model.plate is not None:  # the plate couples each vertex with its two-ring
+            ptr, col, _ = model.plate
+            pairs = np.stack([np.repeat(np.arange(n), np.diff(ptr)), col], axis=1)
+            self.coupled.append(pairs[pairs[:, 0] != pairs[:, 1]])
+        self.colour_ptr, self.vertices = colour_groups(n, self.coupled, model.free)
         self.weights = (model.hinge_weights if model.hinge_weights is not None
                         else np.zeros((0, 4)))
         damped = model.damping > 0.0
@@ -349,7 +368,7 @@ class VertexBlockDescent(Integrator):
         m = self.model
         return (x, x_n, y, m.mass, 1.0 / (self.h * self.h), m.faces, m.dr_inv, m.area, m.stretch,
                 m.k_shear, m.has_membrane, *self.tri, self.bend, m.hinge, m.hinge_rest_angle,
-                m.hinge_coef, self.weights, *self.hinges, self.damp, self.tri_damp, self.tri_f,
+                m.hinge_coef, self.weights, *self.plate, *self.hinges, self.damp, self.tri_damp, self.tri_f,
                 self.hinge_damp)
 
     def prepare(self, x_n):

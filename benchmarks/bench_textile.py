@@ -1,0 +1,272 @@
+"""The textile lab's tests, swept over meshes and resolutions, and what bending costs.
+
+    python -m benchmarks textile
+
+Writes ``bench-results/textile.md`` and ``textile_drape.png``:
+
+- cantilever (ASTM D1388): tip drop against the elastica at overhangs of 1, 2 and 3
+  bending lengths, strips along and across a grid, at 45° to one and on a Delaunay mesh,
+  at 20 and 40 divisions along the strip, for the ``hessian`` and ``dihedral`` models
+  (static equilibrium, :mod:`clothtool.sim.statics`);
+- hanging strips along warp, weft and bias against ρgL²/(2k) (k along the bias from
+  :func:`clothtool.sim.textile.bias_modulus`);
+- Cusick drape (BS 5058: a 30 cm disc on an 18 cm pedestal): the drape coefficient on a
+  grid, the grid turned 45° and a Delaunay mesh at two spacings, simulated to rest with the
+  implicit method (a 6-fold ripple of 2 mm seeds the folds alike on every mesh);
+- cost: the 64×64 hanging sheet (sample_data/hanging_sheet.yaml) at one step per frame, CPU
+  ms per step with bending and with ``bend: 0``, in this checkout and in a clone of the
+  commit before the plate model (``BASE`` below, made with ``git clone``); bending's share
+  is the difference, medians of alternating runs in one process each.
+"""
+
+import os
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from benchmarks.common import markdown_table
+
+HERE = Path(__file__).resolve().parent.parent
+BASE_COMMIT = "1e6cea5"
+BASE = Path(os.environ.get("CLOTHTOOL_BASE", f"/tmp/base-{os.getpid()}"))
+G = 9.81
+
+
+def cantilever_rows():
+    from clothtool.errors import NumericalError
+    from clothtool.sim.statics import static_equilibrium
+    from clothtool.sim.textile import elastica_tip_drop, specimen_model, strip
+
+    length, width, density = 0.1, 0.025, 0.2
+    rows = []
+    for model_name in ("hessian", "dihedral"):
+        for kind in ("grid", "across", "rot45", "delaunay"):
+            for divisions in (20, 40):
+                uv, faces, held = strip(length, width, length / divisions, kind)
+                tip = np.flatnonzero(uv[:, 0] >= length - 1e-9)
+                row = {"model": model_name, "mesh": kind, "divisions": divisions,
+                       "vertices": len(uv)}
+                started = time.perf_counter()
+                for overhang in (1, 2, 3):
+                    bend = density * G * (length / overhang) ** 3
+                    with tempfile.TemporaryDirectory() as tmp:
+                        model = specimen_model(uv, faces, held, {
+                            "density": density, "bend": bend, "stretch": 5000.0, "shear": 50.0,
+                            "damping": 0.0, "bend_model": model_name}, tmp)
+                    try:
+                        x = static_equilibrium(model)
+                    except NumericalError as exc:
+                        row[f"{overhang}c error"] = f"no equilibrium ({exc})"
+                        continue
+                    drop = -x[tip, 2].mean()
+                    ref = elastica_tip_drop(length, bend, density)
+                    row[f"{overhang}c error"] = f"{100 * (drop / ref - 1):+.2f} %"
+                    row[f"{overhang}c drop mm"] = f"{1000 * drop:.2f}"
+                row["s"] = f"{time.perf_counter() - started:.1f}"
+                print("  cantilever", row, flush=True)
+                rows.append(row)
+    return rows
+
+
+def hanging_rows():
+    from clothtool.sim.statics import static_equilibrium
+    from clothtool.sim.textile import bias_modulus, specimen_model, strip
+
+    length, width, density, k_u, k_v, k_h = 0.4, 0.01, 0.2, 1000.0, 3000.0, 50.0
+    rows = []
+    for spacing in (0.0025, 0.00125):
+        uv, faces, _ = strip(length, width, spacing, "grid", clamp=False)
+        top = np.flatnonzero(uv[:, 0] <= 1e-12)
+        tip = np.flatnonzero(uv[:, 0] >= length - 1e-12)
+        for direction, angle, k in (("warp", 0.0, k_u), ("weft", 90.0, k_v),
+                                    ("bias", 45.0, bias_modulus(k_u, k_v, k_h))):
+            c, s = np.cos(np.radians(angle)), np.sin(np.radians(angle))
+            turn = np.array([[c, -s], [s, c]])
+            with tempfile.TemporaryDirectory() as tmp:
+                model = specimen_model(uv @ turn.T, faces, top, {
+                    "density": density, "stretch": [k_u, k_v], "shear": k_h, "bend": 1e-6,
+                    "damping": 0.0}, tmp, gravity=(G * c, G * s, 0.0))
+            x = static_equilibrium(model)
+            extension = (x[tip, :2] @ turn[:, 0]).mean() - length
+            closed = density * G * length ** 2 / (2 * k)
+            rows.append({"direction": direction, "spacing mm": spacing * 1000,
+                         "k along the strip N/m": f"{k:.1f}",
+                         "extension mm": f"{1000 * extension:.4f}",
+                         "ρgL²/(2k) mm": f"{1000 * closed:.4f}",
+                         "error": f"{100 * (extension / closed - 1):+.2f} %"})
+            print("  hanging", rows[-1], flush=True)
+    return rows
+
+
+DRAPE = dict(radius=0.15, pedestal=0.09, density=0.2, bending_length=0.03, stretch=5000.0,
+             shear=50.0, damping=0.05, fps=60, seconds=3.0)
+
+
+def drape(kind, spacing):
+    """(positions, faces, drape coefficient, folds, wall s) of the Cusick test on one mesh."""
+    from clothtool.sim.config import load_config
+    from clothtool.sim.methods import make_integrator
+    from clothtool.sim.textile import disc, drape_coefficient, specimen_model
+
+    d = DRAPE
+    uv, faces = disc(d["radius"], spacing, kind, seed=1)
+    r, phi = np.hypot(uv[:, 0], uv[:, 1]), np.arctan2(uv[:, 1], uv[:, 0])
+    held = np.flatnonzero(r <= d["pedestal"] + 1e-9)
+    with tempfile.TemporaryDirectory() as tmp:
+        model = specimen_model(uv, faces, held, {
+            "density": d["density"], "bending_length": d["bending_length"],
+            "stretch": d["stretch"], "shear": d["shear"], "damping": d["damping"]}, tmp)
+    solver = load_config({"mesh": {"grid": {}}, "solver": {"tolerance": 1e-3}}).solver
+    integrator = make_integrator(model, solver, 1.0 / d["fps"])
+    state = model.initial_state()
+    ripple = np.clip(r - d["pedestal"], 0.0, None) / (d["radius"] - d["pedestal"])
+    state.x[:, 2] = -0.002 * ripple * np.cos(6 * phi)
+    started = time.perf_counter()
+    for _ in range(int(d["seconds"] * d["fps"])):
+        integrator.step(state)
+    wall = time.perf_counter() - started
+    coefficient = drape_coefficient(state.x, faces, d["pedestal"], d["radius"], centre=(0, 0, 0))
+    rim = np.flatnonzero(r >= d["radius"] - 1e-9)
+    order = np.argsort(phi[rim])
+    reach = np.hypot(state.x[rim, 0], state.x[rim, 1])[order]
+    folds = int(np.sum((reach > np.roll(reach, 1)) & (reach >= np.roll(reach, -1))
+                       & (reach > np.median(reach))))
+    return state.x, faces, coefficient, folds, wall, float(np.abs(state.v).max())
+
+
+def drape_rows(out_dir):
+    rows, shown = [], {}
+    drape("grid", 0.02)  # compile the kernels outside the timings
+    for spacing in (0.01, 0.0075):
+        for kind in ("grid", "rot45", "delaunay"):
+            x, faces, dc, folds, wall, speed = drape(kind, spacing)
+            rows.append({"mesh": kind, "spacing mm": spacing * 1000, "vertices": len(x),
+                         "drape coefficient": f"{dc:.4f}", "folds": folds,
+                         "largest speed at the end mm/s": f"{1000 * speed:.2f}",
+                         "wall s": f"{wall:.1f}"})
+            print("  drape", rows[-1], flush=True)
+            if spacing == 0.0075:
+                shown[kind] = (x, faces, dc)
+    for spacing in (0.01, 0.0075):
+        values = [float(r["drape coefficient"]) for r in rows if r["spacing mm"] == spacing * 1000]
+        rows.append({"mesh": "spread (max − min)/mean", "spacing mm": spacing * 1000,
+                     "drape coefficient": f"{100 * (max(values) - min(values)) / np.mean(values):.2f} %"})
+    for kind in ("grid", "rot45", "delaunay"):
+        values = [float(r["drape coefficient"]) for r in rows if r["mesh"] == kind]
+        rows.append({"mesh": f"{kind}: 10 → 7.5 mm",
+                     "drape coefficient": f"{100 * (values[1] / values[0] - 1):+.2f} %"})
+    _plot_drape(shown, out_dir / "textile_drape.png")
+    return rows
+
+
+def _plot_drape(shown, path):
+    try:
+        import matplotlib
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError:
+        print("  matplotlib not installed: no drape picture (pip install 'clothtool[bench]')")
+        return
+    fig = plt.figure(figsize=(12, 4.4))
+    for k, (kind, (x, faces, dc)) in enumerate(shown.items()):
+        ax = fig.add_subplot(1, len(shown), k + 1, projection="3d")
+        ax.plot_trisurf(x[:, 0], x[:, 1], x[:, 2], triangles=faces, cmap="viridis",
+                        linewidth=0.1, edgecolor=(0, 0, 0, 0.15))
+        ax.set_title(f"{kind}: drape coefficient {dc:.3f}")
+        ax.set_box_aspect((1, 1, 0.5))
+        ax.view_init(elev=35, azim=30)
+        ax.set_axis_off()
+    fig.suptitle("Cusick drape, 30 cm disc on an 18 cm pedestal, c = 3 cm, 7.5 mm spacing")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+COST_SCRIPT = r"""
+import sys, time, statistics
+sys.path.insert(0, sys.argv[1])
+from clothtool.sim.config import load_config
+from clothtool.sim.methods import make_integrator
+from clothtool.sim.model import build_model
+bend, frames = float(sys.argv[2]), int(sys.argv[3])
+cfg = load_config(sys.argv[1] + "/sample_data/hanging_sheet.yaml", overrides={
+    "mesh.grid.nx": 64, "mesh.grid.ny": 64, "material.bend": bend})
+model = build_model(cfg)
+integ = make_integrator(model, cfg.solver, cfg.step)
+state = model.initial_state()
+integ.step(state)
+cpu, newton, cg = [], 0, 0
+for _ in range(frames):
+    t0 = time.process_time()
+    r = integ.step(state)
+    cpu.append(time.process_time() - t0)
+    newton += r.newton_iterations
+    cg += r.cg_iterations
+print(1000 * statistics.median(cpu), newton / frames, cg / frames, model.pattern.nnzb)
+"""
+
+
+def cost_rows(repeat=3, frames=20):
+    if not BASE.exists():
+        subprocess.run(["git", "clone", "-q", str(HERE), str(BASE)], check=True)
+        subprocess.run(["git", "-C", str(BASE), "checkout", "-q", BASE_COMMIT], check=True)
+    runs = {}
+    for _ in range(repeat):  # alternate so that the machine's load falls on both alike
+        for label, root in (("before (dihedral, 1e6cea5)", BASE), ("after (hessian)", HERE)):
+            for bend in (1e-5, 0.0):
+                out = subprocess.run([sys.executable, "-c", COST_SCRIPT, str(root), str(bend),
+                                      str(frames)], capture_output=True, text=True, check=True,
+                                     cwd=root, env={**os.environ, "PYTHONPATH": str(root)})
+                ms, newton, cg, nnzb = out.stdout.split()
+                runs.setdefault((label, bend), []).append((float(ms), float(newton), float(cg),
+                                                           int(nnzb)))
+    rows = []
+    share = {}
+    for label in ("before (dihedral, 1e6cea5)", "after (hessian)"):
+        on = runs[(label, 1e-5)]
+        off = runs[(label, 0.0)]
+        ms_on = statistics.median(r[0] for r in on)
+        ms_off = statistics.median(r[0] for r in off)
+        share[label] = ms_on - ms_off
+        rows.append({"checkout": label, "ms/step with bending": f"{ms_on:.1f}",
+                     "ms/step with bend 0": f"{ms_off:.1f}",
+                     "bending's share ms/step": f"{ms_on - ms_off:.1f}",
+                     "Newton/step": f"{on[0][1]:.2f}", "PCG/step": f"{on[0][2]:.1f}",
+                     "matrix blocks": on[0][3]})
+    ratio = share["after (hessian)"] / share["before (dihedral, 1e6cea5)"]
+    rows.append({"checkout": "after / before", "bending's share ms/step": f"{ratio:.2f}×"})
+    return rows
+
+
+def run(out_dir):
+    out_dir = Path(out_dir)
+    sections = []
+    started = time.perf_counter()
+    cost = cost_rows()
+    sections.append("### Cost: 64×64 hanging sheet, one step per frame\n\nCPU ms per step "
+                    "(median of 20 steps, 3 alternating runs each; bending's share = with − "
+                    "without bending):\n\n" + markdown_table(cost, list(cost[0])))
+    cant = cantilever_rows()
+    sections.append("### Cantilever (ASTM D1388) against the elastica\n\n0.1 m × 25 mm strip, "
+                    "0.2 kg/m², stretch 5000 N/m, shear 50 N/m, bending length 0.1/n m for an "
+                    "overhang of nc; clamp line halfway between the two pinned rows.\n\n"
+                    + markdown_table(cant, list(cant[0])))
+    hang = hanging_rows()
+    sections.append("### Hanging strip along warp, weft and bias\n\n0.4 m × 10 mm, 0.2 kg/m², "
+                    "stretch [1000, 3000] N/m, shear 50 N/m, top edge pinned.\n\n"
+                    + markdown_table(hang, list(hang[0])))
+    dr = drape_rows(out_dir)
+    cols = ["mesh", "spacing mm", "vertices", "drape coefficient", "folds",
+            "largest speed at the end mm/s", "wall s"]
+    sections.append("### Cusick drape (BS 5058)\n\n30 cm disc, 18 cm pedestal, 0.2 kg/m², "
+                    "bending length 3 cm, stretch 5000 N/m, shear 50 N/m, damping 0.05 s, 3 s at "
+                    "60 fps (implicit, BDF2); picture: textile_drape.png.\n\n"
+                    + markdown_table(dr, cols))
+    text = "## Textile tests\n\n`python -m benchmarks textile`\n\n" + "\n".join(sections)
+    (out_dir / "textile.md").write_text(text)
+    print(f"  textile benchmark in {time.perf_counter() - started:.0f} s")

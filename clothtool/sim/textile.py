@@ -1,0 +1,223 @@
+"""The textile lab's tests as the simulator meets them: specimens and their known answers.
+
+Specimens are flat patterns (uv in metres, counter-clockwise triangles) on a regular grid,
+a grid turned 45°, or an irregular (Delaunay) mesh:
+
+- :func:`strip`: a strip along +u from a clamp, for the cantilever test (ASTM D1388) and
+  the hanging strip; :func:`disc`: the Cusick drape test's disc (BS 5058).
+
+Known answers:
+
+- :func:`elastica_tip_drop`: a strip clamped flat, k_b θ'' = −ρg(L − s) cos θ, θ(0) = 0,
+  θ'(L) = 0 (scipy's ``solve_bvp``); tip drop ∫₀ᴸ sin θ ds; ρgL⁴/(8k_b) for small drops;
+- :func:`bias_modulus`: the small-strain tensile stiffness (N/m) at 45° to warp and weft of
+  the stretch and shear energy k_u/2 ε_uu² + k_v/2 ε_vv² + k_h/2 (2ε_uv)²:
+  1/(1/(2K) + 1/(4k_h)), K = 2k_u k_v/(k_u + k_v) (uniaxial stress, free contraction);
+  a strip hanging under its own weight lengthens by ρgL²/(2k) for the stiffness k along it;
+- :func:`drape_coefficient`: (A_shadow − A_pedestal)/(A_disc − A_pedestal).
+"""
+
+import numpy as np
+
+from clothtool.sim.config import STANDARD_GRAVITY
+
+
+def elastica_tip_drop(length, bend, density, gravity=STANDARD_GRAVITY):
+    """Vertical tip drop (m) of a cantilever of ``length`` m clamped flat (large deflections)."""
+    from scipy.integrate import solve_bvp
+
+    q = density * gravity / bend
+    s = np.linspace(0.0, length, 201)
+
+    def rhs(s, y):
+        return np.vstack([y[1], -q * (length - s) * np.cos(y[0])])
+
+    def ends(a, b):
+        return np.array([a[0], b[1]])
+
+    sol = solve_bvp(rhs, ends, s, np.zeros((2, len(s))), tol=1e-10, max_nodes=100000)
+    if not sol.success:
+        raise ArithmeticError(f"elastica: {sol.message}")
+    fine = np.linspace(0.0, length, 20001)
+    return float(np.trapezoid(np.sin(sol.sol(fine)[0]), fine))
+
+
+def bias_modulus(stretch_u, stretch_v, shear):
+    """Small-strain stiffness (N/m) of a strip cut at 45° to warp (u) and weft (v)."""
+    k = 2.0 * stretch_u * stretch_v / (stretch_u + stretch_v)
+    return 1.0 / (1.0 / (2.0 * k) + 1.0 / (4.0 * shear))
+
+
+def drape_coefficient(x, faces, pedestal_radius, disc_radius, centre, up=(0.0, 0.0, 1.0),
+                      pixels=1024):
+    """Cusick drape coefficient of a draped disc: its shadow seen along ``up`` around the
+    pedestal's ``centre`` (rasterised on a pixels² grid over the disc's radius), less the
+    pedestal, over the annulus of the flat disc."""
+    up = np.asarray(up, np.float64) / np.linalg.norm(up)
+    a = np.cross(up, [1.0, 0.0, 0.0] if abs(up[0]) < 0.9 else [0.0, 0.0, 1.0])
+    a /= np.linalg.norm(a)
+    b = np.cross(up, a)
+    centre = np.asarray(centre, np.float64)
+    p = np.stack([(x - centre) @ a, (x - centre) @ b], axis=1)
+    shadow = _rasterise(p, faces, disc_radius, pixels)
+    pedestal = np.pi * pedestal_radius ** 2
+    return (shadow - pedestal) / (np.pi * disc_radius ** 2 - pedestal)
+
+
+def _rasterise(p, faces, radius, pixels):
+    """Area (m²) of the union of the 2D triangles, on a pixels² grid over [−r, r]²."""
+    cell = 2.0 * radius / pixels
+    centres = -radius + cell * (np.arange(pixels) + 0.5)
+    covered = np.zeros((pixels, pixels), np.bool_)
+    for tri in p[faces]:
+        lo = np.floor((tri.min(axis=0) + radius) / cell).astype(int).clip(0, pixels - 1)
+        hi = np.ceil((tri.max(axis=0) + radius) / cell).astype(int).clip(0, pixels - 1)
+        gx, gy = np.meshgrid(centres[lo[0]:hi[0] + 1], centres[lo[1]:hi[1] + 1], indexing="ij")
+        d = []
+        for k in range(3):  # the side of edge k each pixel centre is on
+            ex, ey = tri[(k + 1) % 3] - tri[k]
+            d.append(ex * (gy - tri[k][1]) - ey * (gx - tri[k][0]))
+        inside = ((d[0] >= 0) & (d[1] >= 0) & (d[2] >= 0)) | ((d[0] <= 0) & (d[1] <= 0) & (d[2] <= 0))
+        covered[lo[0]:hi[0] + 1, lo[1]:hi[1] + 1] |= inside
+    return covered.sum() * cell * cell
+
+
+# ---------------------------------------------------------------------------- specimens
+
+
+def specimen_model(uv, faces, pinned, material, folder, gravity=(0.0, 0.0, -STANDARD_GRAVITY)):
+    """A :class:`~clothtool.sim.model.Model` of the pattern laid flat in the xy plane (its uv as
+    the rest shape, written as ``folder/specimen.ply``), ``pinned`` vertex indices held,
+    ``gravity`` (m/s², default down along z); ``material``: the config's material section."""
+    from pathlib import Path
+
+    from clothtool.io.ply import write_ply
+    from clothtool.sim.config import load_config
+    from clothtool.sim.model import build_model
+
+    path = Path(folder) / "specimen.ply"
+    positions = np.concatenate([uv, np.zeros((len(uv), 1))], axis=1)
+    write_ply(path, positions, faces, vertex_properties={"s": uv[:, 0].copy(), "t": uv[:, 1].copy()})
+    config = load_config({"mesh": {"ply": str(path)}, "material": dict(material),
+                          "scene": {"gravity": [float(g) for g in gravity],
+                                    "pins": [int(v) for v in pinned]}})
+    return build_model(config)
+
+
+def strip(length, width, spacing, kind="grid", *, clamp=True, seed=0):
+    """A strip along +u of ``length`` m beyond its clamp, ``width`` m wide (v in ±width/2).
+
+    ``kind``: ``grid`` (clothtool's criss-cross grid, its lines along u and v), ``across``
+    (the same grid with u and v swapped: the strip runs along the grid's second axis),
+    ``rot45`` (a square lattice turned 45°, Delaunay-triangulated) or ``delaunay`` (jittered
+    points, Delaunay). With ``clamp`` the strip starts at u = −spacing/2 and the vertices with
+    u ≤ spacing/2 are the clamp (two rows on a grid): the clamp line, where the strip leaves
+    it flat, is u = 0, halfway between the rows (a second-order clamp: with the line on the
+    outer row the strip would be spacing/2 longer). Without it the strip spans [0, length].
+    ``spacing`` is rounded so that whole intervals fit.
+    Returns (uv (N, 2), faces (M, 3), clamped vertex indices).
+    """
+    n = max(int(round(length / spacing)), 1)
+    spacing = length / (n + 0.5) if clamp else length / n  # rows at ±spacing/2 and on to the tip
+    start = -spacing / 2 if clamp else 0.0
+    if kind in ("grid", "across"):
+        n_along = n + 2 if clamp else n + 1
+        n_across = max(int(round(width / spacing)), 1) + 1
+        a = np.linspace(start, length, n_along)
+        b = np.linspace(-width / 2, width / 2, n_across)
+        if kind == "grid":
+            uv, faces = _criss_cross(a, b)
+        else:
+            uv, faces = _criss_cross(b, a)
+            uv = uv[:, ::-1].copy()
+            faces = faces[:, ::-1].copy()
+    else:
+        uv, faces = _delaunay_strip(start, length, width, spacing, kind, seed,
+                                    spacing / 2 if clamp else None)
+    held = np.flatnonzero(uv[:, 0] <= spacing / 2 + 1e-9 * spacing) if clamp else np.zeros(0, np.int64)
+    return uv, faces, held.astype(np.int64)
+
+
+def disc(radius, spacing, kind="grid", *, seed=0):
+    """A disc of ``radius`` m centred on the origin: ``grid`` (criss-cross grid clipped to the
+    circle, with a ring of boundary points), ``rot45`` (the same grid turned 45°) or
+    ``delaunay`` (jittered points). Returns (uv (N, 2), faces (M, 3))."""
+    rng = np.random.default_rng(seed)
+    n_ring = int(np.ceil(2 * np.pi * radius / spacing))
+    phi = 2 * np.pi * np.arange(n_ring) / n_ring
+    ring = radius * np.stack([np.cos(phi), np.sin(phi)], axis=1)
+    m = int(np.ceil(radius / spacing)) + 1
+    g = spacing * np.arange(-m, m + 1)
+    gx, gy = np.meshgrid(g, g)
+    pts = np.stack([gx.ravel(), gy.ravel()], axis=1)
+    if kind == "rot45":
+        c = np.sqrt(0.5)
+        pts = pts @ np.array([[c, -c], [c, c]])
+    elif kind == "delaunay":
+        pts = pts + rng.uniform(-0.3, 0.3, pts.shape) * spacing
+    elif kind != "grid":
+        raise ValueError(f"disc kind {kind!r}")
+    pts = pts[np.hypot(pts[:, 0], pts[:, 1]) < radius - 0.4 * spacing]
+    return _delaunay(np.concatenate([pts, ring]), spacing)
+
+
+def _criss_cross(a, b):
+    """Grid over a × b (vertex j·len(a) + i at (a_i, b_j)), quads split by alternating diagonals
+    as :func:`clothtool.sim.mesh.grid_mesh` does."""
+    nx, ny = len(a), len(b)
+    aa, bb = np.meshgrid(a, b)
+    uv = np.stack([aa.ravel(), bb.ravel()], axis=1)
+    i, j = np.meshgrid(np.arange(nx - 1), np.arange(ny - 1))
+    i, j = i.ravel(), j.ravel()
+    v00, v10 = j * nx + i, j * nx + i + 1
+    v01, v11 = v00 + nx, v10 + nx
+    even = ((i + j) % 2 == 0)[:, None]
+    t1 = np.where(even, np.stack([v00, v10, v11], 1), np.stack([v00, v10, v01], 1))
+    t2 = np.where(even, np.stack([v00, v11, v01], 1), np.stack([v10, v11, v01], 1))
+    return uv, np.concatenate([t1, t2]).astype(np.int64)
+
+
+def _delaunay_strip(start, length, width, spacing, kind, seed, clamp_line):
+    """Points on the outline (and on the clamp line), a turned lattice or jittered points inside."""
+    rng = np.random.default_rng(seed)
+    na = int(round((length - start) / spacing))
+    nb = max(int(round(width / spacing)), 1)
+    a_line = np.linspace(start, length, na + 1)
+    b_line = np.linspace(-width / 2, width / 2, nb + 1)[1:-1]
+    lines = [np.stack([a_line, np.full_like(a_line, v)], 1) for v in (-width / 2, width / 2)]
+    ends = [start, length] + ([clamp_line] if clamp_line is not None else [])
+    lines += [np.stack([np.full_like(b_line, u), b_line], 1) for u in ends]
+    if kind == "rot45":
+        s = spacing * np.sqrt(0.5)
+        m = np.arange(-int((length - start + width) / s) - 2, int((length - start + width) / s) + 3)
+        ga, gb = np.meshgrid(m, m)
+        keep = (ga + gb) % 2 == 0
+        inner = np.stack([start + s * (ga[keep] + 0.5), s * gb[keep]], axis=1)
+        margin = 0.3 * s
+    elif kind == "delaunay":
+        ga, gb = np.meshgrid(np.arange(start + spacing / 2, length, spacing),
+                             np.arange(-width / 2 + spacing / 2, width / 2, spacing))
+        inner = np.stack([ga.ravel(), gb.ravel()], 1)
+        inner = inner + rng.uniform(-0.3, 0.3, inner.shape) * spacing
+        margin = 0.2 * spacing
+    else:
+        raise ValueError(f"strip kind {kind!r}")
+    ok = ((inner[:, 0] > start + margin) & (inner[:, 0] < length - margin)
+          & (np.abs(inner[:, 1]) < width / 2 - margin))
+    for u in ends[2:]:
+        ok &= np.abs(inner[:, 0] - u) > margin
+    return _delaunay(np.concatenate(lines + [inner[ok]]), spacing)
+
+
+def _delaunay(points, spacing):
+    """Counter-clockwise Delaunay triangles of the points, without zero-area ones."""
+    from scipy.spatial import Delaunay
+
+    faces = Delaunay(points).simplices.astype(np.int64)
+    e1 = points[faces[:, 1]] - points[faces[:, 0]]
+    e2 = points[faces[:, 2]] - points[faces[:, 0]]
+    det = e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]
+    faces = faces[np.abs(det) > 1e-8 * spacing * spacing]
+    det = det[np.abs(det) > 1e-8 * spacing * spacing]
+    faces[det < 0] = faces[det < 0][:, [0, 2, 1]]
+    return points, faces

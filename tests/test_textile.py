@@ -1,0 +1,197 @@
+"""The textile lab's tests against their known answers, and the plate bending model's kernels.
+
+- the cantilever (ASTM D1388) against the elastica, at 1, 2 and 3 bending lengths, on strips
+  along and across a grid, at 45° to one and on a Delaunay mesh (the benchmark
+  ``python -m benchmarks textile`` runs every mesh at two resolutions);
+- a strip hanging under its own weight along warp, weft and bias (ρgL²/(2k));
+- the ``hessian`` model's energy: finite differences of its gradient and Hessian, zero for rigid
+  motions, ≥ 0, k_b κ²/2 per unit area for a rolled sheet on any mesh.
+"""
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from clothtool.errors import InputError
+from clothtool.sim.config import load_config
+from clothtool.sim.plate import hessian_bending_matrix, hessian_gradient, mixed_voronoi_areas
+from clothtool.sim.statics import static_equilibrium
+from clothtool.sim.textile import (bias_modulus, disc, elastica_tip_drop, specimen_model,
+                                   strip)
+
+G = 9.81
+
+
+# ---------------------------------------------------------------------------- known answers
+
+
+def test_elastica_is_beam_theory_for_small_deflections():
+    length, density = 0.1, 0.2
+    bend = density * G * (5 * length) ** 3  # overhang c/5: the tip drops 0.1 % of the length
+    beam = density * G * length ** 4 / (8 * bend)
+    assert elastica_tip_drop(length, bend, density) == pytest.approx(beam, rel=2e-5)
+
+
+def test_elastica_of_the_issue_strip():
+    """0.1 m, 0.2 kg/m², 2.45e-4 N·m (c = 5 cm, overhang 2c): the tip drops 64.1 mm."""
+    assert elastica_tip_drop(0.1, 2.45e-4, 0.2) == pytest.approx(0.0641, abs=5e-5)
+
+
+def test_bias_modulus_of_a_balanced_fabric():
+    k, shear = 4000.0, 30.0
+    assert bias_modulus(k, k, shear) == pytest.approx(1.0 / (1.0 / (2 * k) + 1.0 / (4 * shear)))
+
+
+# ---------------------------------------------------------------------------- plate kernels
+
+
+def plate_energy(q, x):
+    return hessian_gradient(x, q.indptr.astype(np.int64), q.indices.astype(np.int64), q.data,
+                            np.zeros((0, 3)))
+
+
+def embedded(uv):
+    return np.concatenate([uv, np.zeros((len(uv), 1))], axis=1)
+
+
+def test_plate_gradient_and_hessian_match_finite_differences():
+    uv, faces, _ = strip(0.05, 0.02, 0.01, "delaunay", clamp=False, seed=3)
+    q = hessian_bending_matrix(uv, faces) * 2e-4
+    rng = np.random.default_rng(1)
+    x = embedded(uv) + 0.01 * rng.normal(size=(len(uv), 3))
+    ptr, col = q.indptr.astype(np.int64), q.indices.astype(np.int64)
+    grad = np.zeros_like(x)
+    hessian_gradient(x, ptr, col, q.data, grad)
+    step = 1e-6
+    fd = np.zeros_like(x)
+    for i in range(len(x)):
+        for p in range(3):
+            xp, xm = x.copy(), x.copy()
+            xp[i, p] += step
+            xm[i, p] -= step
+            fd[i, p] = (plate_energy(q, xp) - plate_energy(q, xm)) / (2 * step)
+    np.testing.assert_allclose(grad, fd, rtol=0, atol=1e-7 * np.abs(grad).max())
+    # the Hessian the solver assembles (k_b Q ⊗ I₃) is the derivative of that gradient
+    dense = q.toarray()
+    for i, p in ((0, 0), (5, 2), (len(x) - 1, 1)):
+        xp, xm = x.copy(), x.copy()
+        xp[i, p] += step
+        xm[i, p] -= step
+        gp, gm = np.zeros_like(x), np.zeros_like(x)
+        hessian_gradient(xp, ptr, col, q.data, gp)
+        hessian_gradient(xm, ptr, col, q.data, gm)
+        column = (gp - gm) / (2 * step)
+        expected = np.zeros_like(x)
+        expected[:, p] = dense[:, i]
+        np.testing.assert_allclose(column, expected, rtol=0, atol=1e-6 * np.abs(dense).max())
+
+
+@settings(max_examples=25, deadline=None)
+@given(seed=st.integers(0, 10_000), kind=st.sampled_from(["grid", "rot45", "delaunay"]),
+       angles=st.tuples(*[st.floats(-3.1, 3.1)] * 3),
+       shift=st.tuples(*[st.floats(-10.0, 10.0)] * 3))
+def test_plate_energy_is_zero_for_rigid_motions_and_never_negative(seed, kind, angles, shift):
+    uv, faces = disc(0.05, 0.012, kind, seed=seed)
+    q = hessian_bending_matrix(uv, faces)
+    a, b, c = angles
+    rz = np.array([[np.cos(a), -np.sin(a), 0], [np.sin(a), np.cos(a), 0], [0, 0, 1]])
+    ry = np.array([[np.cos(b), 0, np.sin(b)], [0, 1, 0], [-np.sin(b), 0, np.cos(b)]])
+    rx = np.array([[1, 0, 0], [0, np.cos(c), -np.sin(c)], [0, np.sin(c), np.cos(c)]])
+    x = embedded(uv) @ (rz @ ry @ rx).T + np.asarray(shift)
+    grad = np.zeros_like(x)
+    energy = hessian_gradient(x, q.indptr.astype(np.int64), q.indices.astype(np.int64), q.data, grad)
+    scale = np.abs(q.data).max() * np.abs(x).max() ** 2  # the size of the rounding in x·Qx
+    assert abs(energy) <= 1e-12 * scale * len(x)
+    assert np.abs(grad).max() <= 1e-12 * np.abs(q.data).max() * np.abs(x).max() * 20
+    rng = np.random.default_rng(seed)
+    y = rng.normal(size=x.shape)
+    assert plate_energy(q, y) >= -1e-12 * np.abs(q.data).max() * len(y)
+
+
+@pytest.mark.parametrize("kind", ["grid", "across", "rot45", "delaunay"])
+@pytest.mark.parametrize("along", [True, False], ids=["bent-along", "bent-across"])
+def test_a_rolled_sheet_stores_kb_kappa2_over_2_per_unit_area(kind, along):
+    """Rolled isometrically into a cylinder of curvature κ: W = k_b κ²/2 A, less the half-cells
+    at the edges the fold runs along (the plate carries no moment across a free edge)."""
+    length, width, spacing, kappa = 0.1, 0.05, 0.0025, 20.0
+    uv, faces, _ = strip(length, width, spacing, kind, clamp=False)
+    s = uv[:, 0] if along else uv[:, 1]
+    x = np.zeros((len(uv), 3))
+    x[:, 0 if along else 1] = np.sin(kappa * s) / kappa
+    x[:, 1 if along else 0] = uv[:, 1] if along else uv[:, 0]
+    x[:, 2] = (1 - np.cos(kappa * s)) / kappa
+    ratio = plate_energy(hessian_bending_matrix(uv, faces), x) / (0.5 * kappa ** 2 * length * width)
+    edge = spacing / (length if along else width)  # the two half-cells along the fold's ends
+    assert 1 - 1.5 * edge < ratio < 1.005
+
+
+def test_mixed_voronoi_areas_sum_to_the_area():
+    uv, faces = disc(0.1, 0.02, "delaunay", seed=4)
+    p = uv[faces]
+    e1, e2 = p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]
+    area = 0.5 * np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]).sum()
+    vor = mixed_voronoi_areas(uv, faces)
+    assert vor.min() > 0 and vor.sum() == pytest.approx(area, rel=1e-12)
+
+
+# ---------------------------------------------------------------------------- the lab's tests
+
+
+@pytest.mark.parametrize("overhang", [1, 2, 3], ids=["1c", "2c", "3c"])
+@pytest.mark.parametrize("kind,divisions", [("grid", 20), ("across", 20), ("rot45", 20),
+                                            ("delaunay", 40)])
+def test_cantilever_droops_as_the_elastica(tmp_path, kind, divisions, overhang):
+    """ASTM D1388: a 0.1 m strip, 0.2 kg/m², bending length 0.1/overhang m; tip drop within 3 %."""
+    length, width, density = 0.1, 0.025, 0.2
+    bend = density * G * (length / overhang) ** 3
+    uv, faces, held = strip(length, width, length / divisions, kind)
+    model = specimen_model(uv, faces, held, {"density": density, "bend": bend, "stretch": 5000.0,
+                                             "shear": 50.0, "damping": 0.0}, tmp_path)
+    x = static_equilibrium(model)
+    drop = -x[np.flatnonzero(uv[:, 0] >= length - 1e-9), 2].mean()
+    assert drop == pytest.approx(elastica_tip_drop(length, bend, density), rel=0.03)
+
+
+@pytest.mark.parametrize("direction", ["warp", "weft", "bias"])
+def test_hanging_strip_lengthens_by_rho_g_l2_over_2k(tmp_path, direction):
+    """A strip 40 widths long hung by its top edge; along the bias the clamp holds back the
+    strip's contraction near the top (1.5 % stiffer here, less for longer strips)."""
+    length, width, density, k_u, k_v, k_h = 0.4, 0.01, 0.2, 1000.0, 3000.0, 50.0
+    uv, faces, _ = strip(length, width, 0.0025, "grid", clamp=False)
+    top = np.flatnonzero(uv[:, 0] <= 1e-12)
+    tip = np.flatnonzero(uv[:, 0] >= length - 1e-12)
+    angle, k = {"warp": (0.0, k_u), "weft": (90.0, k_v),
+                "bias": (45.0, bias_modulus(k_u, k_v, k_h))}[direction]
+    c, s = np.cos(np.radians(angle)), np.sin(np.radians(angle))
+    turn = np.array([[c, -s], [s, c]])  # the strip's axis is at `angle` to warp (u)
+    model = specimen_model(uv @ turn.T, faces, top, {"density": density, "stretch": [k_u, k_v],
+                                                     "shear": k_h, "bend": 1e-6, "damping": 0.0},
+                           tmp_path, gravity=(G * c, G * s, 0.0))
+    x = static_equilibrium(model)
+    extension = (x[tip, :2] @ turn[:, 0]).mean() - length
+    assert extension == pytest.approx(density * G * length ** 2 / (2 * k), rel=0.02)
+
+
+# ---------------------------------------------------------------------------- config
+
+
+def test_bending_length_gives_the_flexural_rigidity():
+    cfg = load_config({"mesh": {"grid": {}}, "material": {"density": 0.25, "bending_length": 0.02}})
+    assert cfg.material.bend == pytest.approx(0.25 * 9.81 * 0.02 ** 3, rel=1e-15)
+    with pytest.raises(InputError, match="material: give one of bend .* and bending_length"):
+        load_config({"mesh": {"grid": {}}, "material": {"bend": 1e-5, "bending_length": 0.02}})
+    with pytest.raises(InputError, match="material.bending_length must be > 0"):
+        load_config({"mesh": {"grid": {}}, "material": {"bending_length": -1}})
+
+
+def test_a_curved_rest_mesh_is_bent_with_the_dihedral_model(tmp_path):
+    from clothtool.io.ply import write_ply
+    from clothtool.sim.model import build_model
+
+    uv, faces = disc(0.05, 0.01, "grid")
+    x = embedded(uv)
+    x[:, 2] = 5.0 * (uv ** 2).sum(axis=1)  # a bowl, no uv: it rests in this shape
+    write_ply(tmp_path / "bowl.ply", x, faces)
+    model = build_model(load_config({"mesh": {"ply": str(tmp_path / "bowl.ply")}}))
+    assert model.bend_model == "dihedral" and model.plate is None
