@@ -145,3 +145,13 @@ def interrupt_when(proc, ready, signum, waiting_for, timeout=300):
     assert proc.returncode == 130, stderr
     assert stderr.decode() == "clothtool: interrupted\n"
     return stdout, stderr
+
+
+def dense_operator(rows, weights, blocks, count, n_vertices):
+    """H = Σ_k (w_k w_kᵀ) ⊗ B_k of pair-operator entries, dense (3N × 3N)."""
+    h = np.zeros((n_vertices, 3, n_vertices, 3))
+    for k in range(count):
+        for i in range(4):
+            for j in range(4):
+                h[rows[k, i], :, rows[k, j], :] += weights[k, i] * weights[k, j] * blocks[k]
+    return h.reshape(3 * n_vertices, 3 * n_vertices)

@@ -7,6 +7,7 @@ normalised barrier potential, its CCD and its ``has_intersections``.
 import ipctk
 import numpy as np
 import pytest
+from conftest import dense_operator
 
 from clothtool.contact.barrier import (EDGE_EDGE, POINT_PLANE, POINT_TRIANGLE, barrier,
                                        barrier_blocks, barrier_first, barrier_second,
@@ -56,16 +57,6 @@ def geometry(x, xi, dhat, obstacle=None, rest=None, xi_obstacle=None, dhat_obsta
     return pair_geometry(np.zeros(n, bool) if obstacle is None else obstacle, np.zeros(n),
                          x if rest is None else rest, xi, xi if xi_obstacle is None else xi_obstacle,
                          dhat, dhat if dhat_obstacle is None else dhat_obstacle)
-
-
-def dense_operator(rows, weights, blocks, count, n_vertices):
-    """H = Σ_k (w_k w_kᵀ) ⊗ B_k of pair-operator entries, dense (3N × 3N)."""
-    h = np.zeros((n_vertices, 3, n_vertices, 3))
-    for k in range(count):
-        for i in range(4):
-            for j in range(4):
-                h[rows[k, i], :, rows[k, j], :] += weights[k, i] * weights[k, j] * blocks[k]
-    return h.reshape(3 * n_vertices, 3 * n_vertices)
 
 
 # ---------------------------------------------------------------- distances

@@ -11,6 +11,7 @@ a capsule (its axis with a radius) and a plane (a vertex–plane stencil).
 import ipctk
 import numpy as np
 import pytest
+from conftest import dense_operator
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 from scipy.optimize import minimize_scalar
@@ -50,16 +51,6 @@ def assemble(x, stencils, geo, kappa=1.0):
     act, w, nrm, coef, force, tilt = pairs
     e, n_act, gap = contact_assemble(x, stencils, geo, kappa, grad, act, w, nrm, coef, force, tilt)
     return e, grad, (act, n_act, w, nrm, coef, force, tilt), gap
-
-
-def dense_operator(rows, weights, blocks, count, n_vertices):
-    """H = Σ_k (w_k w_kᵀ) ⊗ B_k of pair-operator entries, dense (3N × 3N)."""
-    h = np.zeros((n_vertices, 3, n_vertices, 3))
-    for k in range(count):
-        for i in range(4):
-            for j in range(4):
-                h[rows[k, i], :, rows[k, j], :] += weights[k, i] * weights[k, j] * blocks[k]
-    return h.reshape(3 * n_vertices, 3 * n_vertices)
 
 
 def operator_hessian(x, stencils, pairs):
