@@ -194,10 +194,10 @@ def test_no_penetration_of_a_sphere_or_plane(tmp_path):
     faces = x[0].faces
     for f in x:  # no triangle reaches into the sphere (exact triangle–sphere distance)
         gap = [triangle_point_distance(f.vertices[t], np.array([0, -0.4, 0])) for t in faces]
-        assert min(gap) >= 0.3 + 0.5e-3
-        assert f.vertices[:, 1].min() >= -0.8 + 0.5e-3
-    # the sheet came to rest on the sphere: it touches at the margin, the edges hang lower
-    assert min(gap) == pytest.approx(0.3 + 1e-3, abs=0.1e-3)
+        assert min(gap) >= 0.3 + 1e-3  # the barrier's wall: half the 2 mm margin
+        assert f.vertices[:, 1].min() >= -0.8 + 1e-3
+    # the sheet came to rest on the sphere: within 5 % inside the margin, the edges hang lower
+    assert min(gap) == pytest.approx(0.3 + 2e-3, abs=0.1e-3)
     assert x[-1].vertices[:, 1].min() < -0.2
 
 
