@@ -193,9 +193,10 @@ sys.path.insert(0, sys.argv[1])
 from clothtool.sim.config import load_config
 from clothtool.sim.methods import make_integrator
 from clothtool.sim.model import build_model
-bend, frames = float(sys.argv[2]), int(sys.argv[3])
+bend, frames, bend_model = float(sys.argv[2]), int(sys.argv[3]), sys.argv[4]
 cfg = load_config(sys.argv[1] + "/sample_data/hanging_sheet.yaml", overrides={
-    "mesh.grid.nx": 64, "mesh.grid.ny": 64, "material.bend": bend})
+    "mesh.grid.nx": 64, "mesh.grid.ny": 64, "material.bend": bend,
+    "material.bend_model": bend_model})
 model = build_model(cfg)
 integ = make_integrator(model, cfg.solver, cfg.step)
 state = model.initial_state()
@@ -217,10 +218,12 @@ def cost_rows(repeat=3, frames=20):
         subprocess.run(["git", "-C", str(BASE), "checkout", "-q", BASE_COMMIT], check=True)
     runs = {}
     for _ in range(repeat):  # alternate so that the machine's load falls on both alike
-        for label, root in (("before (dihedral, 1e6cea5)", BASE), ("after (hessian)", HERE)):
+        for label, root, bend_model in (("before (dihedral, 1e6cea5)", BASE, "dihedral"),
+                                        ("after (hessian)", HERE, "hessian")):
             for bend in (1e-5, 0.0):
                 out = subprocess.run([sys.executable, "-c", COST_SCRIPT, str(root), str(bend),
-                                      str(frames)], capture_output=True, text=True, check=True,
+                                      str(frames), bend_model], capture_output=True, text=True,
+                                     check=True,
                                      cwd=root, env={**os.environ, "PYTHONPATH": str(root)})
                 ms, newton, cg, nnzb = out.stdout.split()
                 runs.setdefault((label, bend), []).append((float(ms), float(newton), float(cg),
