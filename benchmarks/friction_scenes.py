@@ -3,7 +3,8 @@ bench_friction.py: a sheet on an incline (Coulomb's stick and slip) and a sheet 
 turning sphere (Codimensional IPC's test).
 
 A 0.3 m sheet laid on an incline of angle θ holds when μ > tan θ and otherwise slides with
-acceleration g(sin θ − μ cos θ). The incline is a ``plane``, a ``box``, a triangle-mesh ramp,
+acceleration g(sin θ − μ cos θ); both are measured after the sheet has settled onto its
+contact (SETTLE). The incline is a ``plane``, a ``box``, a triangle-mesh ramp,
 or another sheet (cloth–cloth, the lower sheet pinned).
 """
 
@@ -60,13 +61,18 @@ def incline_scene(folder, surface, theta, mu, seconds, n=8, fps=30):
     return config, down, n * n
 
 
+SETTLE = 0.5  # s: the sheet, laid at the margin, settles onto its contact first
+
+
 def incline_motion(folder, surface, theta, mu, seconds):
-    """(travel along the slope (m) over the run, acceleration fitted to the second half)."""
-    config, down, n_top = incline_scene(folder, surface, theta, mu, seconds)
+    """(travel along the slope (m) in ``seconds`` after SETTLE, acceleration fitted to the
+    second half of those seconds)."""
+    config, down, n_top = incline_scene(folder, surface, theta, mu, SETTLE + seconds)
     simulate(config, progress=False)
     paths = sorted((folder / "out").glob("frame_*.ply"))
     centre = np.array([read_ply(p).vertices[-n_top:].mean(axis=0) for p in paths]) @ down
-    s = centre - centre[0]
+    settled = int(round(SETTLE * config["time"]["fps"]))
+    s = centre[settled:] - centre[settled]
     t = np.arange(len(s)) / config["time"]["fps"]
     half = len(t) // 2
     fit = np.polyfit(t[half:], s[half:], 2)

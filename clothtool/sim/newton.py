@@ -85,6 +85,14 @@ def eisenstat_walker(g_norm, g_prev, previous, floor):
     return min(EW_MAX, max(floor, eta))
 
 
+def _residual_velocity(g, kind, normal, constrained, mass, h_eff):
+    """max_v ĥ‖(S g)_v‖/m_v: the largest velocity change the residual force makes in a step."""
+    if constrained:
+        g = g.copy()
+        apply_filter(g, kind, normal)
+    return float(np.max(np.sqrt(np.sum(g * g, axis=1)) / mass)) * h_eff
+
+
 def _filtered_norm(g, kind, normal, constrained):
     """‖S g‖ (the gradient on the unconstrained directions)."""
     if constrained:
@@ -316,6 +324,12 @@ class NewtonIntegrator(Integrator):
             # was poor there, not because x is near the minimum
             converged = step == 0.0 or (step == 1.0 and moved <= tol and -float(
                 np.sum(grad * dx)) <= tol * tol * self._free_mass)
+            if converged and step > 0.0 and contact is not None and contact.n_lag:
+                # friction's stick stiffness 2μλ/(ĥε_v) makes the Newton steps of a sheet that
+                # starts sliding tiny: converged only once the residual force would change no
+                # velocity by more than tol within the step either
+                converged = _residual_velocity(grad, kind, self._normal, constrained,
+                                               model.mass, h_eff) <= tol
             # converged: done unless re-lagging the friction pairs changes their force
             if (converged and self._behind(x, moving, goal) <= REACHED
                     and (contact is None or contact.relag(x) <= tol)):
