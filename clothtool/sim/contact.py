@@ -435,7 +435,6 @@ class BarrierContact:
         """CCD of the motion dy over the candidates; the pairs that can come within reach
         on it become the live pairs of its line search and of the assembly after it."""
         self._ensure(self.y, self.dy)
-        sc = self.scene
         self.live = near_pairs(self.y, self.dy, self.stencils, self.geometry, self.reach)
         self._live_motion = True
         return collision_free_step(self.y, self.dy, self.live, self.geometry, 1.0)

@@ -85,20 +85,12 @@ def eisenstat_walker(g_norm, g_prev, previous, floor):
     return min(EW_MAX, max(floor, eta))
 
 
-def _residual_velocity(g, kind, normal, constrained, mass, h_eff):
-    """max_v ĥ‖(S g)_v‖/m_v: the largest velocity change the residual force makes in a step."""
+def _filtered(g, kind, normal, constrained):
+    """S g (the gradient on the unconstrained directions), a copy when it differs from g."""
     if constrained:
         g = g.copy()
         apply_filter(g, kind, normal)
-    return float(np.max(np.sqrt(np.sum(g * g, axis=1)) / mass)) * h_eff
-
-
-def _filtered_norm(g, kind, normal, constrained):
-    """‖S g‖ (the gradient on the unconstrained directions)."""
-    if constrained:
-        g = g.copy()
-        apply_filter(g, kind, normal)
-    return float(np.sqrt(np.sum(g * g)))
+    return g
 
 
 class NewtonIntegrator(Integrator):
@@ -273,7 +265,8 @@ class NewtonIntegrator(Integrator):
                 grad += self._damped
             if contact is not None:
                 elastic += contact.assemble(x, grad, matrix)
-            g_norm = _filtered_norm(grad, kind, self._normal, constrained)
+            free_grad = _filtered(grad, kind, self._normal, constrained)
+            g_norm = float(np.sqrt(np.sum(free_grad * free_grad)))
             if it > 0:
                 # PCG guess: what the line search left of the last step; after a step that CCD
                 # cut short, zero: the barrier it ran into has changed the Hessian by up to
@@ -328,8 +321,8 @@ class NewtonIntegrator(Integrator):
                 # friction's stick stiffness 2μλ/(ĥε_v) makes the Newton steps of a sheet that
                 # starts sliding tiny: converged only once the residual force would change no
                 # velocity by more than tol within the step either
-                converged = _residual_velocity(grad, kind, self._normal, constrained,
-                                               model.mass, h_eff) <= tol
+                converged = h_eff * float(np.max(
+                    np.sqrt(np.sum(free_grad * free_grad, axis=1)) / model.mass)) <= tol
             # converged: done unless re-lagging the friction pairs changes their force
             if (converged and self._behind(x, moving, goal) <= REACHED
                     and (contact is None or contact.relag(x) <= tol)):
