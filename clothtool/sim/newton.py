@@ -119,7 +119,7 @@ class NewtonIntegrator(Integrator):
         self.contact = None  # mesh colliders and self-collision (clothtool.sim.contact)
         if model.contact is not None:
             self.contact = BarrierContact(model.contact, model.mass, model.free, h,
-                                          max(model.stretch[0], model.stretch[1], model.k_shear),
+                                          max(model.tri_stretch[:, :2].max(), model.tri_shear.max()),
                                           solver.friction_velocity)
             self.contact.check_initial(model.mesh.positions)
 
