@@ -338,12 +338,50 @@ def test_attach_follows_an_animated_mesh_in_its_triangle_frame():
     colliders = Colliders(["scene.colliders[0].mesh"], [frames], [1.0], [None], np.array([0, 4]),
                           tri, np.zeros((0, 2), np.int64), np.zeros((0, 2), np.int64),
                           np.arange(4), np.zeros(4), np.zeros(4))
-    mesh = SimpleNamespace(positions=np.array([[0.3, 0.2, 0.01], [-0.5, 0.6, 0.02]]), path=None)
+    x = np.array([[0.3, 0.2, 0.01], [-0.5, 0.6, 0.02]])
     entry = SimpleNamespace(vertices=(0, 1), to=0)
-    (motion,) = attach_motions([entry], SimpleNamespace(colliders=colliders), mesh,
-                               np.zeros(0, np.int64), "scene.attach")
-    assert np.allclose(motion.positions(None, 0.0), mesh.positions)
-    assert np.allclose(motion.positions(None, 1.0), mesh.positions @ turn.T)
+    (motion,) = attach_motions([entry], [np.array([0, 1])], colliders, x)
+    assert np.allclose(motion.positions(None, 0.0), x)
+    assert np.allclose(motion.positions(None, 1.0), x @ turn.T)
+
+
+def test_attach_taking_hold_later_follows_the_rigid_motion_from_there():
+    """Tied at t_w to a collider turning about z at 1 rad/s: at t_w the goal is where the
+    vertex is, at t_w + 0.5 it is turned by 0.5 rad more."""
+    from clothtool.sim.attach import attach_motions
+    from clothtool.sim.colliders import load_colliders
+    from clothtool.sim.config import load_config
+
+    scene = load_config({"mesh": {"grid": {}}, "scene": {"colliders": [{"sphere": {
+        "center": [0, 0, 0], "radius": 0.1, "motion": {"rotate": {"axis": [0, 0, 1],
+                                                                  "speed": 1.0}}}}]}}).scene
+    colliders = load_colliders(scene.colliders)
+    x = np.array([[0.5, 0.0, 0.0], [0.0, 0.3, 0.2]])
+    entry = type("E", (), {"to": 0})()
+    (motion,) = attach_motions([entry], [np.array([0, 1])], colliders, x, t=0.7)
+    assert np.allclose(motion.positions(None, 0.7), x)
+    c, s = np.cos(0.5), np.sin(0.5)
+    turned = x @ np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]]).T
+    assert np.allclose(motion.positions(None, 1.2), turned)
+
+
+def test_a_sewn_garment_is_attached_at_its_weld(tmp_path):
+    """Attachments of a garment being sewn take hold when it is welded: from then on the
+    attached vertices move with the sphere (0.3 m/s along z), before it they are sewn freely."""
+    path, a, b, x0 = apart_obj(tmp_path)
+    top = [int(v) for v in np.flatnonzero(np.isclose(x0[:, 1], x0[:, 1].max()))]
+    cfg = sewing_config(path, a, b, frames=12)
+    cfg["scene"]["colliders"] = [{"sphere": {"center": [0, 0.15, -0.3], "radius": 0.1,
+                                             "motion": {"translate": {"velocity": [0, 0, 0.3]}}}}]
+    cfg["scene"]["attach"] = {"vertices": top, "to": 0}
+    out = tmp_path / "out"
+    clothtool.simulate(cfg, output_dir=out, progress=False)
+    frames = [read_ply(out / f"frame_{k:05d}.ply").vertices for k in range(13)]
+    weld = next(k for k, x in enumerate(frames) if np.array_equal(x[a], x[b]))
+    assert 0 < weld < 12
+    for k in range(weld + 1, 13):
+        assert np.allclose(frames[k][top], frames[weld][top] + [0, 0, 0.3 * (k - weld) / 30],
+                           atol=1e-9)
 
 
 @pytest.mark.parametrize("attach, message", [

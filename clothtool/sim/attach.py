@@ -1,7 +1,8 @@
 """``scene.attach``: garment vertices carried by a collider's surface (a waistband on a body).
 
-Each attached vertex is tied at t = 0 to the nearest point of collider K's surface, at the
-offset it starts from it, and follows the collider as a moving pin whose goal is that point
+Each attached vertex is tied at t = 0 (a garment being sewn: when its seams are welded, so
+that it is dressed first) to the nearest point of collider K's surface, at the offset it
+starts from it, and follows the collider as a moving pin whose goal is that point
 and offset (:meth:`Model.pin_goal <clothtool.sim.model.Model.pin_goal>`, solved as every moving
 pin is: a prescribed part of the Newton step, collision-free):
 
@@ -10,7 +11,8 @@ pin is: a prescribed part of the Newton step, collision-free):
   offset along its unit normal), give x(t) from the triangle's vertices at t;
 - every other collider moves rigidly (its ``motion``, or not at all): x(t) = c + T(t) +
   R(θ(t))(x₀ − c), the collider's own motion of the vertex's initial position
-  (:class:`~clothtool.sim.motion.RigidMotion`), which keeps its nearest point and offset.
+  (:class:`~clothtool.sim.motion.RigidMotion`), which keeps its nearest point and offset;
+  tied at t_w, x₀ = c + R(−θ(t_w))(x_w − c − T(t_w)).
 """
 
 from dataclasses import dataclass
@@ -45,17 +47,12 @@ class AttachMotion:
         y = self.colliders.positions(t)
         return _in_frames(y, self.triangles, self.coords)
 
-    def renumbered(self, new):
-        """The attachment with vertex v renamed new[v] (after a weld)."""
-        return AttachMotion(new[self.vertices], self.colliders, self.collider, self.x0,
-                            self.triangles, self.coords)
 
 
-def attach_motions(attach, contact, mesh, pinned, key):
-    """An :class:`AttachMotion` per ``scene.attach`` entry; InputError for a vertex out of
+def check_attach(attach, mesh, pinned, key):
+    """(P,) int64 vertex lists of the ``scene.attach`` entries; InputError for a vertex out of
     range, pinned, or attached twice."""
     n = len(mesh.positions)
-    colliders = contact.colliders
     taken = np.zeros(n, np.bool_)
     taken[pinned] = True
     out = []
@@ -72,19 +69,43 @@ def attach_motions(attach, contact, mesh, pinned, key):
             raise InputError(f"{where}.vertices[{clash[0]}]: vertex {int(v[clash[0]])} is already "
                              "pinned or attached")
         taken[v] = True
-        x0 = mesh.positions[v].copy()
+        out.append(v)
+    return out
+
+
+def attach_motions(attach, vertices, colliders, x, t=0.0):
+    """An :class:`AttachMotion` per ``scene.attach`` entry, its ``vertices`` (model indices)
+    at positions ``x`` (N, 3) tied at time t to collider ``entry.to``."""
+    out = []
+    for entry, v in zip(attach, vertices):
+        xv = x[v].copy()
         c = entry.to
         lo, hi = colliders.offsets[c], colliders.offsets[c + 1]
         triangles = coords = None
         if len(colliders.frames[c]) > 1:  # an animated mesh: the nearest triangle's frame
             tri = colliders.faces[(colliders.faces >= lo).all(axis=1)
                                   & (colliders.faces < hi).all(axis=1)]
-            y = colliders.positions(0.0)
-            nearest = _nearest_triangles(np.concatenate([x0, y]), tri + len(x0), len(x0))
+            y = colliders.positions(t)
+            nearest = _nearest_triangles(np.concatenate([xv, y]), tri + len(xv), len(xv))
             triangles = tri[nearest]
-            coords = _frame_coords(y, triangles, x0)
+            coords = _frame_coords(y, triangles, xv)
+            x0 = xv
+        else:
+            motion = colliders.motions[c]
+            x0 = xv if motion is None or t == 0.0 else _unmoved(motion, xv, t)
         out.append(AttachMotion(v, colliders, c, x0, triangles, coords))
     return out
+
+
+def _unmoved(motion, x, t):
+    """The positions x₀ at t = 0 that a rigid motion takes to x at time t:
+    x₀ = c + R(−θ(t))(x − c − T(t))."""
+    theta = -motion.speed * min(t, motion.until_rotate)
+    u = x - motion.center - motion.velocity * min(t, motion.until_translate)
+    k = motion.axis
+    c, s = np.cos(theta), np.sin(theta)
+    ku = (u * k).sum(axis=1, keepdims=True)
+    return motion.center + u * c + np.cross(k, u) * s + ku * k * (1.0 - c)
 
 
 @njit(cache=True)

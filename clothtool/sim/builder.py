@@ -46,8 +46,8 @@ class ModelBuilder:
         self.config = None  # the config whose scene the colliders come from
         self.origin = None  # (N, 3) positions at t = 0, when they differ from mesh.positions
         self.file_vertex = None  # (N_file,) the model vertex of each vertex of the file
-        self.attach, self.attach_key = (), "scene.attach"
-        self.attached = None  # AttachMotion per scene.attach entry, made by finalize
+        self.attach, self.attach_vertices = (), []  # scene.attach and each entry's vertices
+        self.attach_time = 0.0  # when the attachments take hold (a sewn garment: its weld)
         self.sewing, self.weld_distance = None, 0.0  # mesh.sewing and its weld distance (m)
 
     @classmethod
@@ -153,7 +153,10 @@ class ModelBuilder:
 
     def add_attachments(self, attach, key="scene.attach"):
         """Vertices carried by a collider's surface (:mod:`clothtool.sim.attach`): moving pins."""
-        self.attach, self.attach_key = attach, key
+        from clothtool.sim.attach import check_attach
+
+        self.attach = attach
+        self.attach_vertices = check_attach(attach, self.mesh, self.pinned, key)
         return self
 
     def welded(self, model, state):
@@ -162,14 +165,16 @@ class ModelBuilder:
         attachments renumbered, no stitches."""
         from clothtool.sim.seams import weld
 
-        (mesh, origin, file_vertex, pinned, motions, attached), state = weld(self, model, state)
+        (mesh, origin, file_vertex, pinned, motions), state = weld(self, model, state)
         out = ModelBuilder()
         out.mesh, out.material, out.config = mesh, self.material, self.config
         out.dr, out.area = self.dr, self.area
         for attr in ("tri_stretch", "tri_shear", "tri_density", "tri_bend", "tri_damping"):
             setattr(out, attr, getattr(self, attr))
-        out.pinned, out.pin_motions, out.attached = pinned, motions, attached
+        out.pinned, out.pin_motions = pinned, motions
         out.origin, out.file_vertex = origin, file_vertex
+        out.attach, out.attach_time = self.attach, state.time
+        out.attach_vertices = [np.unique(file_vertex[v]) for v in self.attach_vertices]
         return out, state
 
     # ------------------------------------------------------------------ finalize
@@ -188,13 +193,13 @@ class ModelBuilder:
         # vertices out of spheres and planes (clothtool.sim.collide)
         contact = build_contact_scene(config, mesh) if barrier_contact(config) else None
         pinned, pin_motions = self.pinned, list(self.pin_motions)
-        if self.attach and self.attached is None:
+        if self.attach and not len(self.stitches):  # a garment is attached once it is sewn
             from clothtool.sim.attach import attach_motions
 
-            self.attached = attach_motions(self.attach, contact, mesh, pinned, self.attach_key)
-        if self.attached:
-            pin_motions += self.attached
-            pinned = np.union1d(pinned, np.concatenate([a.vertices for a in self.attached]))
+            attached = attach_motions(self.attach, self.attach_vertices, contact.colliders,
+                                      mesh.positions, self.attach_time)
+            pin_motions += attached
+            pinned = np.union1d(pinned, np.concatenate([a.vertices for a in attached]))
         free = np.ones(n, dtype=np.bool_)
         free[pinned] = False
         kind = np.full(n, FREE, dtype=np.int8)
@@ -206,6 +211,9 @@ class ModelBuilder:
         plane_arr = np.array([[*c.point, *(np.asarray(c.normal) / np.linalg.norm(c.normal))]
                               for c in planes], dtype=np.float64).reshape(-1, 6)
 
+        gravity = np.asarray(config.scene.gravity, dtype=np.float64)
+        if len(self.stitches) and not self.sewing.gravity:
+            gravity = np.zeros(3)  # sewn without gravity (mesh.sewing.gravity)
         bend_model, hinge, rest_angle, coef, weights = self._bending()
         plate = None
         if bend_model == "hessian":
@@ -236,7 +244,7 @@ class ModelBuilder:
         return Model(
             mesh=mesh, dr_inv=dr_inv, area=self.area, mass=mass,
             stretch=self.tri_stretch[0].copy(), k_shear=float(self.tri_shear[0]),
-            damping=mat.damping, gravity=np.asarray(config.scene.gravity, dtype=np.float64),
+            damping=mat.damping, gravity=gravity,
             bend_model=bend_model, hinge=hinge, hinge_rest_angle=rest_angle, hinge_coef=coef,
             hinge_weights=weights, plate=plate, pinned=pinned, free=free, kind=kind,
             spheres=sphere_arr, planes=plane_arr,

@@ -92,11 +92,14 @@ def seam_list(value, key):
 class Sewing(Section):
     """The sewing phase of ``mesh.seams``: stitches of ``stiffness`` N/m per metre of seam pull
     each pair together until every pair is within ``weld`` m (None: the self-collision
-    thickness), then the pairs are welded; not closed after ``time`` s is a failure."""
+    thickness), then the pairs are welded; not closed after ``time`` s is a failure.
+    ``gravity``: whether gravity acts while the garment is sewn (off: the panels stay where
+    they are laid out)."""
 
     stiffness: float = setting(1000.0, positive)
     weld: float | None = setting(None, positive)
     time: float = setting(2.0, positive)
+    gravity: bool = setting(False, flag)
 
 
 @dataclass(frozen=True)

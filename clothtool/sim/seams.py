@@ -163,7 +163,7 @@ def check_sewing(model, x, t, builder, frame):
 
 def weld(builder, model, state):
     """The welded garment's (mesh, t = 0 positions, file vertex map, pinned vertices, pin
-    motions, attachments) and the state on it: each group of sewn vertices one vertex at
+    motions) and the state on it: each group of sewn vertices one vertex at
     their mean position and velocity (see the module)."""
     mesh, n = builder.mesh, len(builder.mesh.positions)
     root = np.arange(n)
@@ -187,11 +187,10 @@ def weld(builder, model, state):
     file_vertex = new if builder.file_vertex is None else new[builder.file_vertex]
     pinned = np.unique(new[builder.pinned])
     motions = [type(m)(np.unique(new[m.vertices]), m.motion) for m in builder.pin_motions]
-    attached = [a.renumbered(new) for a in (builder.attached or [])]
     state.x, state.v = x, merge(state.v)
     if state.x_prev is not None:
         state.x_prev, state.v_prev = merge(state.x_prev), merge(state.v_prev)
-    return (welded, merge(origin), file_vertex, pinned, motions, attached), state
+    return (welded, merge(origin), file_vertex, pinned, motions), state
 
 
 def _find(root, v):
