@@ -7,8 +7,9 @@ Measures, for ``python -m benchmarks garment``:
 - the largest seam gap after the weld (goal ≤ 1 mm) and the frame it welds at;
 - crossing frames: our exact test (``clothtool.contact.intersect``) and ``ipctk.has_intersections``
   on every written frame, the garment's welded seam vertices merged (goal 0 and 0);
-- whether the garment stays on the body: the largest distance of a garment vertex from the
-  body's axis, and the attached vertices' largest distance from their goal;
+- whether the garment stays on the body: after the weld, the largest distance of a garment
+  vertex from the body's axis, its lowest point at the end, and the attached vertices'
+  largest distance from their goal (the body's turn since the weld);
 - ms/frame (CPU, median over the frames after the weld and over the sewing frames).
 
 Writes ``garment.md`` and ``garment.csv`` into OUT_DIR.
@@ -99,9 +100,8 @@ def measure():
         b = np.concatenate([s["b"] for s in seams])
         merge = np.arange(n)
         merge[b] = a
-        x0 = read_ply(out / "frame_00000.ply").vertices
         crossings, ipc_crossings, weld_frame, worst_gap = 0, 0, None, 0.0
-        off_axis, attach_err = 0.0, 0.0
+        off_axis, attach_err, lowest = 0.0, 0.0, 0.0
         try:
             import ipctk
         except ImportError:
@@ -121,11 +121,16 @@ def measure():
 
                 ipc_crossings += bool(ipctk.has_intersections(
                     ipctk.CollisionMesh(x, mesh_edges(f), f), x))
+            if weld_frame is None:
+                continue
+            if k == weld_frame:  # the attachments take hold at the weld
+                x_weld = x[top].copy()
             off_axis = max(off_axis, float(np.sqrt(x[:, 0] ** 2 + x[:, 2] ** 2).max()))
-            theta = SPEED * k / FPS
+            lowest = float(x[:, 1].min())
+            theta = SPEED * (k - weld_frame) / FPS
             c, s = np.cos(theta), np.sin(theta)
-            goal = np.column_stack([c * x0[top, 0] + s * x0[top, 2], x0[top, 1],
-                                    -s * x0[top, 0] + c * x0[top, 2]])
+            goal = np.column_stack([c * x_weld[:, 0] + s * x_weld[:, 2], x_weld[:, 1],
+                                    -s * x_weld[:, 0] + c * x_weld[:, 2]])
             attach_err = max(attach_err, float(np.abs(x[top] - goal).max()))
         wall = stats["wall_s"][1:]
         sew = wall[:weld_frame] if weld_frame else wall
@@ -134,7 +139,8 @@ def measure():
                 "welded at frame": weld_frame, "seam gap after weld mm (goal ≤ 1)": 1e3 * worst_gap,
                 "crossing frames, ours": crossings,
                 "crossing frames, ipctk": ipc_crossings if ipctk is not None else "n/a",
-                "farthest vertex from the body axis m": off_axis,
+                "farthest vertex from the body axis after the weld m": off_axis,
+                "lowest vertex at the end m (body bottom -0.48)": lowest,
                 "attached vertices off their goal m": attach_err,
                 "ms/frame sewing (wall median)": 1e3 * statistics.median(sew) if len(sew) else 0.0,
                 "ms/frame dressed (wall median)": 1e3 * statistics.median(after) if len(after) else 0.0,

@@ -122,12 +122,6 @@ class ModelBuilder:
                                 ("tri_bend", panel.bend), ("tri_damping", panel.damping)):
                 if value is not None:
                     getattr(self, attr)[tri] = value
-        if np.any(self.tri_damping != self.tri_damping[0]):
-            name = next(n for n, p in materials.items()
-                        if p.damping is not None and p.damping != self.material.damping)
-            raise InputError(f"{key}.{name}.damping: every panel takes material.damping "
-                             f"({self.material.damping:g} s); a panel's own damping is not "
-                             "supported")
         return self
 
     def add_stitches(self, pairs, stiffness):
@@ -214,7 +208,7 @@ class ModelBuilder:
         gravity = np.asarray(config.scene.gravity, dtype=np.float64)
         if len(self.stitches) and not self.sewing.gravity:
             gravity = np.zeros(3)  # sewn without gravity (mesh.sewing.gravity)
-        bend_model, hinge, rest_angle, coef, weights = self._bending()
+        bend_model, hinge, hinge_faces, rest_angle, coef, weights = self._bending()
         plate = None
         if bend_model == "hessian":
             from clothtool.sim.plate import hessian_bending_matrix
@@ -222,29 +216,28 @@ class ModelBuilder:
             q = hessian_bending_matrix(mesh.uv, faces) * self.tri_bend[0]
             plate = (q.indptr.astype(np.int64), q.indices.astype(np.int64), q.data)
         terms = []
-        if np.any(self.tri_stretch[:, :2] > 0.0) or np.any(self.tri_shear > 0.0):
-            terms.append(Membrane(faces, dr_inv, self.area, self.tri_stretch, self.tri_shear))
-        if bend_model == "hessian":
-            terms.append(PlateBending(plate, n))
-        elif bend_model == "dihedral":
-            terms.append(DihedralBending(hinge, rest_angle, coef))
-        elif bend_model == "quadratic":
-            terms.append(QuadraticBending(hinge, weights, coef))
+        terms = _elastic_terms(faces, dr_inv, self.area, self.tri_stretch, self.tri_shear,
+                               bend_model, plate, n, hinge, rest_angle, coef, weights)
         if len(self.stitches):
             terms.append(Stitch(self.stitches, self.stitch_stiffness))
         pattern = BlockPattern(n, *[t.elements for t in terms])
-        constant = None
-        for term in terms:
-            term.bind(pattern)
-            if type(term).constant is not Term.constant:  # a constant Hessian
-                constant = pattern.zeros() if constant is None else constant
-                term.constant(pattern, constant)
+        constant = _bind(terms, pattern)
+        damping_terms = damping_constant = None
+        beta = self.tri_damping
+        if np.any(beta != beta[0]):  # per-panel damping: D = (1/ĥ) Σ β_e K_e, β_e per element
+            scaled = self.tri_stretch.copy()
+            scaled[:, :2] *= beta[:, None]
+            damping_terms = _elastic_terms(faces, dr_inv, self.area, scaled,
+                                           self.tri_shear * beta, bend_model, None, n, hinge,
+                                           rest_angle, coef * beta[hinge_faces].mean(axis=1),
+                                           weights)
+            damping_constant = _bind(damping_terms, pattern)
         hinged = bend_model in ("dihedral", "quadratic")
         mat = self.material
         return Model(
             mesh=mesh, dr_inv=dr_inv, area=self.area, mass=mass,
             stretch=self.tri_stretch[0].copy(), k_shear=float(self.tri_shear[0]),
-            damping=mat.damping, gravity=gravity,
+            damping=float(beta.max()), gravity=gravity,
             bend_model=bend_model, hinge=hinge, hinge_rest_angle=rest_angle, hinge_coef=coef,
             hinge_weights=weights, plate=plate, pinned=pinned, free=free, kind=kind,
             spheres=sphere_arr, planes=plane_arr,
@@ -256,6 +249,7 @@ class ModelBuilder:
             terms=terms, tri_stretch=self.tri_stretch, tri_shear=self.tri_shear,
             stitches=next((t for t in terms if isinstance(t, Stitch)), None),
             origin=self.origin, file_vertex=self.file_vertex,
+            damping_terms=damping_terms, damping_constant=damping_constant,
         )
 
     def _bending(self):
@@ -266,7 +260,8 @@ class ModelBuilder:
         from clothtool.sim.bending import quadratic_weights
 
         mesh, material = self.mesh, self.material
-        empty = (None, np.zeros((0, 4), np.int64), np.zeros(0), np.zeros(0), None)
+        empty = (None, np.zeros((0, 4), np.int64), np.zeros((0, 2), np.int64), np.zeros(0),
+                 np.zeros(0), None)
         if not np.any(self.tri_bend > 0.0):
             return empty
         faces = mesh.faces
@@ -282,9 +277,10 @@ class ModelBuilder:
         rest_angle = np.zeros(len(hinge)) if flat else dihedral_angles(mesh.rest3d, hinge)
         weights = None
         model = material.bend_model
-        if model == "hessian" and (mesh.uv is None or np.any(self.tri_bend != self.tri_bend[0])):
+        if model == "hessian" and (mesh.uv is None or np.any(self.tri_bend != self.tri_bend[0])
+                                   or np.any(self.tri_damping != self.tri_damping[0])):
             # a mesh that rests in its own (curved) shape, a pattern per corner (garment
-            # panels) or panels of their own bend: the dihedral model
+            # panels) or panels of their own bend or damping: the dihedral model
             model = "dihedral"
         if material.bend_model == "quadratic":
             if mesh.uv is None and mesh.corner_uv is not None:
@@ -294,7 +290,33 @@ class ModelBuilder:
                 raise InputError("material.bend_model: 'quadratic' needs a flat rest state "
                                  "(a grid, or a PLY with uv); use 'dihedral'")
             weights = quadratic_weights(mesh.rest3d, hinge)
-        return model, hinge, rest_angle, coef, weights
+        return model, hinge, hinge_faces, rest_angle, coef, weights
+
+
+def _elastic_terms(faces, dr_inv, area, stretch, shear, bend_model, plate, n, hinge, rest_angle,
+                   coef, weights):
+    """The membrane and bending terms (none whose stiffness is zero)."""
+    terms = []
+    if np.any(stretch[:, :2] > 0.0) or np.any(shear > 0.0):
+        terms.append(Membrane(faces, dr_inv, area, stretch, shear))
+    if bend_model == "hessian":
+        terms.append(PlateBending(plate, n))
+    elif bend_model == "dihedral":
+        terms.append(DihedralBending(hinge, rest_angle, coef))
+    elif bend_model == "quadratic":
+        terms.append(QuadraticBending(hinge, weights, coef))
+    return terms
+
+
+def _bind(terms, pattern):
+    """Bind the terms to the pattern; the sum of their constant Hessians (None: none)."""
+    constant = None
+    for term in terms:
+        term.bind(pattern)
+        if type(term).constant is not Term.constant:
+            constant = pattern.zeros() if constant is None else constant
+            term.constant(pattern, constant)
+    return constant
 
 
 def _rest_edges(mesh):

@@ -21,12 +21,14 @@ from clothtool.sim.springs import spring_assemble, spring_energy
 
 class FemElastic:
     """W = Σ over the Model's terms, on the Model's pattern (the terms' constant Hessians
-    summed once in ``model.constant_hessian``)."""
+    summed once in ``model.constant_hessian``); or over other ``terms`` on that pattern with
+    their ``constant`` (per-panel damping's β-scaled terms)."""
 
-    def __init__(self, model):
+    def __init__(self, model, terms=None, constant=None):
         self.model = model
         self.pattern = model.pattern
-        self.terms = model.terms
+        self.terms = model.terms if terms is None else terms
+        self.constant = model.constant_hessian if terms is None else constant
 
     def energy(self, x):
         total = 0.0
@@ -37,8 +39,8 @@ class FemElastic:
     def assemble(self, x, grad, values):
         """W(x); overwrites grad (N, 3) with ∇W and values with the projected Hessian K."""
         grad[:] = 0.0
-        if self.model.constant_hessian is not None:
-            values[:] = self.model.constant_hessian
+        if self.constant is not None:
+            values[:] = self.constant
         else:
             values[:] = 0.0
         total = 0.0

@@ -39,7 +39,8 @@ BDF2 = "bdf2"  # solver.integrator: bdf2 (the default; refused only when a confi
 MATERIALS = "per-panel materials"  # materials: per-triangle stiffness, density and bending
 SEAMS = "seams"  # mesh.seams: the stitch term and the weld (clothtool.sim.seams)
 ATTACH = "attach"  # scene.attach: vertices carried by a collider's surface (moving pins)
-FEATURES = (FRICTION, CONTACT, MOVING_PINS, BDF2, MATERIALS, SEAMS, ATTACH)
+PANEL_DAMPING = "per-panel damping"  # materials.NAME.damping other than material.damping
+FEATURES = (FRICTION, CONTACT, MOVING_PINS, BDF2, MATERIALS, SEAMS, ATTACH, PANEL_DAMPING)
 
 
 @dataclass(frozen=True)
@@ -56,7 +57,8 @@ class Method:
 
 METHODS = {m.name: m for m in (
     Method("implicit", "clothtool.sim.solvers.implicit:ImplicitEuler",
-           frozenset({FRICTION, CONTACT, MOVING_PINS, BDF2, MATERIALS, SEAMS, ATTACH}),
+           frozenset({FRICTION, CONTACT, MOVING_PINS, BDF2, MATERIALS, SEAMS, ATTACH,
+                      PANEL_DAMPING}),
            "finite-element cloth, BDF2 or backward Euler, Newton + filtered PCG"),
     Method("mass-spring", "clothtool.sim.solvers.mass_spring:MassSpringImplicit",
            frozenset({BDF2}), "spring network, BDF2 or backward Euler, Newton + PCG"),
@@ -93,6 +95,9 @@ def requested_features(config, given=()):
             out.append((MOVING_PINS, f"scene.pins[{i}].{'rotate' if pin.rotate else 'translate'}"))
     if config.materials:
         out.append((MATERIALS, "materials"))
+    for name, panel in config.materials.items():
+        if panel.damping is not None and panel.damping != config.material.damping:
+            out.append((PANEL_DAMPING, f"materials.{name}.damping"))
     if config.mesh.seams:
         out.append((SEAMS, "mesh.seams"))
     if config.scene.attach:

@@ -27,7 +27,7 @@ class Model:
     mass: np.ndarray  # (N,) lumped masses
     stretch: np.ndarray  # (4,) material's k_u, k_v (N/m, warp and weft), b_u, b_v (rest length factors)
     k_shear: float  # material.shear (the per-triangle values: tri_stretch, tri_shear)
-    damping: float  # s
+    damping: float  # s (the largest panel's, with per-panel damping: damping_terms)
     gravity: np.ndarray  # (3,)
     bend_model: str | None  # "hessian", "dihedral", "quadratic", or None when bend = 0
     hinge: np.ndarray  # (H, 4) i, j, k, l
@@ -51,6 +51,8 @@ class Model:
     tri_stretch: np.ndarray | None = None  # (M, 4) each triangle's k_u, k_v, b_u, b_v
     tri_shear: np.ndarray | None = None  # (M,) each triangle's k_shear
     stitches: object = None  # the Stitch term while a garment is sewn (clothtool.sim.seams)
+    damping_terms: list | None = None  # per-panel damping: the terms with stiffness × β_e
+    damping_constant: np.ndarray | None = None  # their constant Hessian blocks
     origin: np.ndarray | None = None  # (N, 3) positions at t = 0 when not mesh.positions (a weld)
     file_vertex: np.ndarray | None = None  # (N_file,) model vertex of each file vertex (a weld)
 
