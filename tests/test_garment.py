@@ -293,6 +293,29 @@ def test_bad_seams_are_one_line_errors(tmp_path, change, message):
     assert "\n" not in str(err.value)
 
 
+def test_a_bad_seam_writes_nothing(tmp_path):
+    """An error found while the model is built stops the run before any file is written."""
+    path, a, b, _ = apart_obj(tmp_path)
+    out = tmp_path / "out"
+    with pytest.raises(InputError, match=r"run the same way"):
+        clothtool.simulate(sewing_config(path, a, b[::-1]), output_dir=out, progress=False)
+    assert not out.exists()
+
+
+def test_a_ply_with_texcoord_rests_per_corner(tmp_path):
+    """A PLY's face texcoord list (u v per corner) is the rest shape, as an OBJ's vt."""
+    from clothtool.io.ply import write_ply
+
+    x, lf, rf, luv, ruv, _ = welded_pair()
+    faces = np.concatenate([lf, rf])
+    corner = np.concatenate([luv, ruv])
+    write_ply(tmp_path / "g.ply", x, faces, face_properties={"texcoord": corner.reshape(-1, 6)})
+    model = build_model(load_config({"mesh": {"ply": str(tmp_path / "g.ply")}}))
+    assert np.allclose(model.mesh.corner_uv, corner)
+    dr = np.stack([corner[:, 1] - corner[:, 0], corner[:, 2] - corner[:, 0]], axis=2)
+    assert np.allclose(np.einsum("mij,mjk->mik", dr, model.dr_inv), np.eye(2))
+
+
 def test_seam_sides_of_different_lengths_are_refused(tmp_path):
     """The right panel's pattern 10 % taller than the left's: its seam side is 10 % longer,
     beyond mesh.seam_tolerance 0.02 (and accepted with a tolerance of 0.2)."""
