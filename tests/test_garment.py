@@ -363,8 +363,9 @@ def test_attached_vertices_follow_a_moving_sphere_exactly(tmp_path):
     path, _, x = welded_obj(tmp_path)
     top = np.flatnonzero(np.isclose(x[:, 1], x[:, 1].max()))
     cfg = {"mesh": {"obj": str(path)},
-           "scene": {"colliders": [{"sphere": {"center": [0.0, 0.45, 0.0], "radius": 0.14,
-                                               "motion": {"translate": {"velocity": [0.3, 0, 0]}}}}],
+           "scene": {"colliders": [{"sphere": {
+               "center": [0.0, 0.45, 0.0], "radius": 0.14,
+               "motion": {"translate": {"velocity": [0.3, 0, 0]}}}}],
                      "attach": {"vertices": [int(v) for v in top], "to": 0}},
            "time": {"fps": 30, "frames": 6}}
     out = tmp_path / "out"

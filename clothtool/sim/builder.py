@@ -80,7 +80,8 @@ class ModelBuilder:
         bad = np.flatnonzero(area <= DEGENERATE * longest)
         if len(bad):
             raise InputError(f"{where}rest triangle {bad[0]} is degenerate (zero area in the rest "
-                             f"{'uv' if flat_pattern(mesh) else 'mesh'}); {len(bad)} such triangles")
+                             f"{'uv' if flat_pattern(mesh) else 'mesh'}); {len(bad)} such "
+                             "triangles")
         self.mesh, self.material, self.dr, self.area = mesh, material, dr, area
         m = len(faces)
         k, b = _warp_weft(material.stretch, material.rest_stretch, mesh, "material")
@@ -201,7 +202,8 @@ class ModelBuilder:
         projected = () if contact is not None else config.scene.colliders
         spheres = [c for c in projected if isinstance(c, Sphere)]
         planes = [c for c in projected if isinstance(c, Plane)]
-        sphere_arr = np.array([[*c.center, c.radius] for c in spheres], dtype=np.float64).reshape(-1, 4)
+        sphere_arr = np.array([[*c.center, c.radius] for c in spheres],
+                              dtype=np.float64).reshape(-1, 4)
         plane_arr = np.array([[*c.point, *(np.asarray(c.normal) / np.linalg.norm(c.normal))]
                               for c in planes], dtype=np.float64).reshape(-1, 6)
 
@@ -233,7 +235,6 @@ class ModelBuilder:
                                            weights)
             damping_constant = _bind(damping_terms, pattern)
         hinged = bend_model in ("dihedral", "quadratic")
-        mat = self.material
         return Model(
             mesh=mesh, dr_inv=dr_inv, area=self.area, mass=mass,
             stretch=self.tri_stretch[0].copy(), k_shear=float(self.tri_shear[0]),
