@@ -51,7 +51,7 @@ def trajectory(cfg, initial=None):
     (after a first, untimed step that compiles the kernels)."""
     from clothtool.sim.config import Config, load_config
     from clothtool.sim.methods import make_integrator
-    from clothtool.sim.model import build_model
+    from clothtool.sim.builder import build_model
 
     config = cfg if isinstance(cfg, Config) else load_config(cfg)
     model = build_model(config)

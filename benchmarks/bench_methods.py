@@ -309,20 +309,20 @@ def profile(out_dir, steps=20):
 
     from clothtool.sim.config import load_config
     from clothtool.sim.methods import make_integrator
-    from clothtool.sim.model import build_model
+    from clothtool.sim.builder import build_model
     from clothtool.sim.output import FrameWriter
 
     # (module, kernel) → stage; each is looked up in the module that calls it
-    stages = {("clothtool.sim.energy", "membrane_assemble"): "membrane assembly (stretch+shear)",
-              ("clothtool.sim.energy", "dihedral_assemble"): "bending assembly (dihedral)",
-              ("clothtool.sim.energy", "quadratic_gradient"): "bending (quadratic)",
+    stages = {("clothtool.sim.terms", "membrane_assemble"): "membrane assembly (stretch+shear)",
+              ("clothtool.sim.terms", "dihedral_assemble"): "bending assembly (dihedral)",
+              ("clothtool.sim.terms", "quadratic_gradient"): "bending (quadratic)",
               ("clothtool.sim.linalg.blocks", "block_multiply"): "damping products",
               ("clothtool.sim.newton", "filtered_pcg"): "linear solve (PCG)",
               ("clothtool.sim.newton", "resolve_collisions"): "collisions (projection)",
               ("clothtool.sim.newton", "contact_constraints"): "collisions (contact constraints)",
               ("clothtool.sim.newton", "apply_friction"): "collisions (friction)",
-              ("clothtool.sim.energy", "membrane_total_energy"): "line search: membrane energy",
-              ("clothtool.sim.energy", "dihedral_total_energy"): "line search: bending energy"}
+              ("clothtool.sim.terms", "membrane_total_energy"): "line search: membrane energy",
+              ("clothtool.sim.terms", "dihedral_total_energy"): "line search: bending energy"}
     scenes = {
         "full (bending, damping 0.01 s, sphere, pins)": dict(
             material={"damping": 0.01}, extra={}),

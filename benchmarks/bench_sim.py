@@ -58,7 +58,7 @@ def _run(overrides, frames):
     from clothtool.errors import NumericalError
     from clothtool.sim.config import load_config
     from clothtool.sim.solvers.implicit import ImplicitEuler
-    from clothtool.sim.model import build_model
+    from clothtool.sim.builder import build_model
 
     cfg = load_config(SCENE, overrides=overrides)
     model = build_model(cfg)

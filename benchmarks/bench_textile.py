@@ -192,7 +192,7 @@ import sys, time, statistics
 sys.path.insert(0, sys.argv[1])
 from clothtool.sim.config import load_config
 from clothtool.sim.methods import make_integrator
-from clothtool.sim.model import build_model
+from clothtool.sim.builder import build_model
 bend, frames, bend_model = float(sys.argv[2]), int(sys.argv[3]), sys.argv[4]
 cfg = load_config(sys.argv[1] + "/sample_data/hanging_sheet.yaml", overrides={
     "mesh.grid.nx": 64, "mesh.grid.ny": 64, "material.bend": bend,

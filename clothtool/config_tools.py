@@ -32,6 +32,12 @@ mesh:
   # are the rest shape, in metres per uv unit times uv_scale):
   # ply: rest.ply
   # uv_scale: 1.0
+  # a garment (implicit): an OBJ whose per-corner vt × uv_scale are each triangle's rest
+  # shape, with its panels' seams sewn and welded (needs scene.self_collision):
+  # obj: garment.obj
+  # seams: [{a: [10, 11, 12], b: [40, 41, 42]}]   # vertex a[i] sewn to b[i]
+  # seam_tolerance: 0.02                        # the sides' rest lengths may differ by 2 %
+  # sewing: {stiffness: 1000.0, weld: null, time: 2.0, gravity: false}
 
 material:
   density: 0.2          # kg/m², areal mass density
@@ -44,6 +50,8 @@ material:
   bending_length: null  # m, instead of bend: the cantilever test's c, bend = density · 9.81 · c³
   # stiffnesses are per unit area (energy density integrated over the rest area), so
   # refining the mesh converges to the same shape instead of changing it
+
+materials: {}         # per panel (an OBJ g or usemtl name, or {faces: [...]}): keys of material, e.g. {sleeve: {stretch: 2000.0}}
 
 scene:
   gravity: [0, -9.81, 0]        # m/s²
@@ -68,6 +76,7 @@ scene:
   activation_distance: null     # m, depth of the contact barrier; null = half the margin
                                 # (and half the self-collision thickness)
   self_collision: null          # cloth–cloth contact (implicit), e.g. {thickness: 0.002, friction: 0.2}
+  attach: []                    # garment vertices carried by a collider (implicit), e.g. {vertices: [0, 1], to: 0}
 
 solver:
   method: implicit      # implicit (Baraff–Witkin), mass-spring, pbd, xpbd, projective, explicit, vbd (docs/solvers.md)

@@ -14,7 +14,7 @@ import pytest
 from clothtool.errors import InputError
 from clothtool.sim.config import load_config
 from clothtool.sim.membrane import max_principal_stretch
-from clothtool.sim.model import build_model
+from clothtool.sim.builder import build_model
 from clothtool.sim.solvers.compare import run_in_memory
 
 TIGHT = dict(newton_iterations=60, newton_tolerance=1e-9, tolerance=1e-10, max_iterations=3000)

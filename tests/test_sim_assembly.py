@@ -18,7 +18,7 @@ from clothtool.sim.linalg.blocks import BlockMatrix
 from clothtool.sim.config import load_config
 from clothtool.sim.energy import FemElastic, SpringElastic
 from clothtool.sim.methods import make_integrator
-from clothtool.sim.model import build_model
+from clothtool.sim.builder import build_model
 from clothtool.sim.solvers.explicit import elastic_forces
 
 STEP = 1e-6

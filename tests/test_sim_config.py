@@ -8,7 +8,7 @@ import pytest
 
 from clothtool.errors import InputError
 from clothtool.sim.config import load_config
-from clothtool.sim.model import build_model
+from clothtool.sim.builder import build_model
 from clothtool.sim.pins import grid_pin_set
 
 GRID = {"mesh": {"grid": {"nx": 4, "ny": 3}}}
@@ -62,7 +62,7 @@ def test_numbers_without_a_dot_are_numbers(tmp_path):
     ("mesh: {grid: {}}\nscene: {colliders: [{sphere: {radius: 0}}]}\n", "scene.colliders[0].sphere.radius must be > 0"),
     ("mesh: {grid: {}}\nsolver: {substeps: true}\n", "solver.substeps must be an integer, got True"),
     ("material: {}\n", "missing section 'mesh'"),
-    ("mesh: {grid: {}, ply: a.ply}\n", "exactly one of mesh.grid and mesh.ply"),
+    ("mesh: {grid: {}, ply: a.ply}\n", "exactly one of mesh.grid, mesh.ply and mesh.obj"),
 ])
 def test_bad_values_name_the_key(tmp_path, text, expected):
     path = write(tmp_path, text)

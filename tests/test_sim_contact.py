@@ -23,7 +23,7 @@ from clothtool.io.ply import read_ply, write_ply
 from clothtool.sim.api import simulate
 from clothtool.sim.config import GridSpec, load_config
 from clothtool.sim.mesh import grid_mesh
-from clothtool.sim.model import build_model
+from clothtool.sim.builder import build_model
 from clothtool.sim.motion import resolve_pin_entries
 from clothtool.sim.colliders import load_colliders
 

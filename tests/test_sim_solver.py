@@ -15,7 +15,7 @@ from clothtool.sim.linalg.multigrid import Hierarchy
 from clothtool.sim.linalg.pcg import BlockJacobi, filtered_pcg
 from clothtool.sim.config import load_config
 from clothtool.sim.methods import make_integrator
-from clothtool.sim.model import build_model
+from clothtool.sim.builder import build_model
 from clothtool.sim.solvers.implicit import ImplicitEuler
 
 

@@ -18,7 +18,7 @@ from hypothesis import strategies as st
 
 from clothtool.errors import InputError
 from clothtool.sim.config import load_config
-from clothtool.sim.model import build_model
+from clothtool.sim.builder import build_model
 from clothtool.sim.methods import make_integrator
 from clothtool.sim.solvers.compare import Run, position_error, run_in_memory
 from clothtool.sim.springs import spring_assemble

@@ -188,7 +188,7 @@ def test_bending_length_gives_the_flexural_rigidity():
 
 def test_a_curved_rest_mesh_is_bent_with_the_dihedral_model(tmp_path):
     from clothtool.io.ply import write_ply
-    from clothtool.sim.model import build_model
+    from clothtool.sim.builder import build_model
 
     uv, faces = disc(0.05, 0.01, "grid")
     x = embedded(uv)

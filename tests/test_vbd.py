@@ -12,7 +12,7 @@ from clothtool.sim.config import load_config
 from clothtool.sim.membrane import membrane_element, membrane_vertex
 from clothtool.sim.energy import FemElastic
 from clothtool.sim.methods import make_integrator
-from clothtool.sim.model import build_model
+from clothtool.sim.builder import build_model
 from clothtool.sim.solvers.vbd import colour_groups, vertex_system
 from clothtool.sim.state import State
 

@@ -11,7 +11,7 @@ from clothtool.cli import main
 from clothtool.errors import InputError
 from clothtool.sim.config import load_config
 from clothtool.sim.methods import make_integrator
-from clothtool.sim.model import build_model
+from clothtool.sim.builder import build_model
 
 
 @pytest.mark.parametrize("method,solver", [

@@ -630,7 +630,8 @@ def write_ply(path, vertices, faces, *, vertex_properties=None, face_properties=
     ``vertices`` (N, 3): written as ``float`` if float32, else ``double``.
     ``faces`` (M, k) int. ``vertex_properties`` / ``face_properties``: dicts of
     name → (N,) / (M,) arrays, written with their own dtype (e.g. ``s t``, or
-    ``red green blue`` as uint8). Binary output is little endian.
+    ``red green blue`` as uint8); a face property (M, L) is a list of L values per face
+    (``texcoord``: u v per corner). Binary output is little endian.
     """
     path = os.fspath(path)
     vertices = np.asarray(vertices)
@@ -643,14 +644,18 @@ def write_ply(path, vertices, faces, *, vertex_properties=None, face_properties=
     vdt = np.dtype([(a, order + vertices.dtype.str[1:]) for a in "xyz"]
                    + [(k, order + v.dtype.str[1:]) for k, v in vprops.items()])
     fdt = np.dtype([("n", "u1"), ("vertex_indices", order + "i4", (faces.shape[1],))]
-                   + [(k, order + v.dtype.str[1:]) for k, v in fprops.items()])
+                   + [f for k, v in fprops.items() for f in (
+                       [(k, order + v.dtype.str[1:])] if v.ndim == 1
+                       else [(k + "\0n", "u1"), (k, order + v.dtype.str[1:], (v.shape[1],))])])
     lines = ["ply", "format " + ("binary_little_endian" if binary else "ascii") + " 1.0"]
     lines += [f"comment {c}" for c in comments]
     lines.append(f"element vertex {len(vertices)}")
     lines += [f"property {_TYPE_NAMES[vdt[k].str[1:]]} {k}" for k in vdt.names]
     lines.append(f"element face {len(faces)}")
     lines.append("property list uchar int vertex_indices")
-    lines += [f"property {_TYPE_NAMES[fdt[k].str[1:]]} {k}" for k in fdt.names[2:]]
+    lines += [f"property {_TYPE_NAMES[fdt[k].str[1:]]} {k}" if fprops[k].ndim == 1
+              else f"property list uchar {_TYPE_NAMES[fdt[k].base.str[1:]]} {k}"
+              for k in fdt.names[2:] if k in fprops]
     lines.append("end_header")
     vrec = np.empty(len(vertices), vdt)
     for j, a in enumerate("xyz"):
@@ -662,6 +667,8 @@ def write_ply(path, vertices, faces, *, vertex_properties=None, face_properties=
     frec["vertex_indices"] = faces
     for k, v in fprops.items():
         frec[k] = v
+        if v.ndim == 2:
+            frec[k + "\0n"] = v.shape[1]
     with atomic_path(path) as tmp, open(tmp, "wb") as fh:
         fh.write(("\n".join(lines) + "\n").encode("ascii"))
         if binary:

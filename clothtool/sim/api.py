@@ -52,10 +52,11 @@ def simulate(config_or_path, *, output_dir=None, overrides=None, progress=True):
     """
     from tqdm import tqdm
 
+    from clothtool.sim.builder import ModelBuilder
     from clothtool.sim.integrator import StepReport
     from clothtool.sim.methods import make_integrator
-    from clothtool.sim.model import build_model
     from clothtool.sim.output import CONTACT_COLUMNS, STATS_COLUMNS, FrameWriter
+    from clothtool.sim.seams import check_sewing, sewn
 
     if isinstance(config_or_path, Config):
         if overrides:
@@ -64,7 +65,9 @@ def simulate(config_or_path, *, output_dir=None, overrides=None, progress=True):
     else:
         config = load_config(config_or_path, overrides=overrides)
     out_dir = Path(output_dir) if output_dir is not None else config.output.dir
-    model = build_model(config)
+    builder = ModelBuilder.from_config(config)
+    model = builder.finalize()
+    written_mesh = model.mesh  # frames keep the file's vertices and faces, after a weld too
     integrator = make_integrator(model, config.solver, config.step)
     state = model.initial_state()
     frames, every, substeps = config.time.frames, config.output.every, config.solver.substeps
@@ -76,7 +79,8 @@ def simulate(config_or_path, *, output_dir=None, overrides=None, progress=True):
 
     contact = getattr(integrator, "contact", None)
     columns = STATS_COLUMNS + (CONTACT_COLUMNS if contact is not None else ())
-    with FrameWriter(out_dir, model.faces, model.mesh.uv, columns) as writer:
+    with FrameWriter(out_dir, written_mesh.faces, written_mesh.uv, columns,
+                     written_mesh.corner_uv) as writer:
 
         def record(frame, report, wall):
             nonlocal written, worst_stretch
@@ -85,7 +89,8 @@ def simulate(config_or_path, *, output_dir=None, overrides=None, progress=True):
             worst_stretch = max(worst_stretch, stretch)
             if contact is not None:  # the exact test: no frame with a crossing is written
                 contact.check_frame(state.x, state.time, frame, out_dir)
-            writer.write_frame(frame, state.x)
+            writer.write_frame(frame, state.x if model.file_vertex is None
+                               else state.x[model.file_vertex])
             writer.write_stats(dict(
                 frame=frame, time=state.time, kinetic=kinetic, elastic=elastic, gravity=gravity,
                 newton_iterations=report.newton_iterations, cg_iterations=report.cg_iterations,
@@ -114,6 +119,14 @@ def simulate(config_or_path, *, output_dir=None, overrides=None, progress=True):
                                  f"{max_speed:g})")
                     raise NumericalError(_blowup(frame, what, out_dir))
             totals.add(report)
+            if model.stitches is not None:  # sewing: weld once every seam pair is close
+                if sewn(model, state.x, builder):
+                    builder, state = builder.welded(model, state)
+                    model = builder.finalize()
+                    integrator = make_integrator(model, config.solver, config.step)
+                    contact = integrator.contact
+                else:
+                    check_sewing(model, state.x, state.time, builder, frame)
             if frame % every == 0:
                 record(frame, report, time.perf_counter() - t0)
         bar.close()

@@ -8,14 +8,14 @@ and check), a section one dataclass plus its line in :class:`Config`, a collider
 dataclass plus its entry in ``COLLIDER_KINDS``; what no single key can check is the section's
 ``finish``.
 
-Relative paths (``mesh.ply``, ``output.dir``) are resolved against the config file's folder;
+Relative paths (``mesh.ply``, ``mesh.obj``, ``output.dir``) are resolved against the config file's folder;
 a config given as a dict resolves them against the current folder.
 """
 
 from __future__ import annotations
 
 import os
-from dataclasses import dataclass, fields, replace
+from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 from typing import Mapping
 
@@ -55,17 +55,70 @@ class GridSpec(Section):
     plane: str = setting("xy", choice(PLANES))
 
 
+def vertex_list(value, key):
+    """A non-empty list of vertex indices ≥ 0 (checked against the mesh later)."""
+    if not isinstance(value, list) or not value:
+        raise type_error(key, "a non-empty list of vertex indices", value)
+    for j, v in enumerate(value):
+        if isinstance(v, bool) or not isinstance(v, int) or v < 0:
+            raise type_error(f"{key}[{j}]", "a vertex index (an integer ≥ 0)", v)
+    return tuple(value)
+
+
+@dataclass(frozen=True)
+class Seam(Section):
+    """Two boundary polylines sewn together: vertex ``a[i]`` to ``b[i]``."""
+
+    a: tuple = setting((), vertex_list)
+    b: tuple = setting((), vertex_list)
+
+    def finish(self, given, key):
+        for side in ("a", "b"):
+            if side not in given:
+                raise InputError(f"{key} needs '{side}' (a list of vertex indices)")
+        if len(self.a) != len(self.b):
+            raise InputError(f"{key}: a has {len(self.a)} vertices and b {len(self.b)}; "
+                             "a[i] is sewn to b[i]")
+        return self
+
+
+def seam_list(value, key):
+    if not isinstance(value, list):
+        raise type_error(key, "a list of seams {a: [...], b: [...]}", value)
+    return tuple(Seam.build(item, f"{key}[{i}]") for i, item in enumerate(value))
+
+
+@dataclass(frozen=True)
+class Sewing(Section):
+    """The sewing phase of ``mesh.seams``: stitches of ``stiffness`` N/m per metre of seam pull
+    each pair together until every pair is within ``weld`` m (None: the self-collision
+    thickness), then the pairs are welded; not closed after ``time`` s is a failure.
+    ``gravity``: whether gravity acts while the garment is sewn (off: the panels stay where
+    they are laid out)."""
+
+    stiffness: float = setting(1000.0, positive)
+    weld: float | None = setting(None, positive)
+    time: float = setting(2.0, positive)
+    gravity: bool = setting(False, flag)
+
+
 @dataclass(frozen=True)
 class MeshSpec(Section):
-    """Exactly one of ``grid`` and ``ply``. ``uv_scale``: metres per uv unit of a PLY's s,t."""
+    """Exactly one of ``grid``, ``ply`` and ``obj``. ``uv_scale``: metres per uv unit of a
+    file's texture coordinates. ``seams``: boundary polylines of panels sewn together
+    (``sewing``), their two sides' rest lengths within ``seam_tolerance`` (relative)."""
 
     grid: GridSpec | None = section(GridSpec, optional=True)
     ply: Path | None = setting(None, path)
+    obj: Path | None = setting(None, path)
     uv_scale: float = setting(1.0, positive)
+    seams: tuple = setting((), seam_list)
+    seam_tolerance: float = setting(0.02, non_negative)
+    sewing: Sewing = section(Sewing)
 
     def finish(self, given, key):
-        if (self.grid is None) == (self.ply is None):
-            raise InputError("mesh needs exactly one of mesh.grid and mesh.ply")
+        if sum(getattr(self, k) is not None for k in ("grid", "ply", "obj")) != 1:
+            raise InputError("mesh needs exactly one of mesh.grid, mesh.ply and mesh.obj")
         return self
 
 
@@ -97,6 +150,30 @@ class Material(Section):
         if "bend" in given:
             raise InputError(f"{key}: give one of bend (N·m) and bending_length (m), not both")
         return replace(self, bend=self.density * STANDARD_GRAVITY * self.bending_length ** 3)
+
+
+@dataclass(frozen=True)
+class PanelMaterial(Section):
+    """One panel's material: the keys of ``material`` it changes (None: the ``material``
+    value) and, instead of an OBJ group or material name, its triangles (``faces``)."""
+
+    density: float | None = setting(None, positive)
+    stretch: float | tuple | None = setting(None, pair_or_number(exclusive=False))
+    rest_stretch: float | tuple | None = setting(None, pair_or_number(exclusive=True))
+    shear: float | None = setting(None, non_negative)
+    bend: float | None = setting(None, non_negative)
+    damping: float | None = setting(None, non_negative)
+    faces: tuple | None = setting(None, vertex_list)
+
+
+def panel_materials(value, key):
+    """{panel name: :class:`PanelMaterial`}: an OBJ group (g) or material (usemtl) name, or
+    any name with ``faces``."""
+    if value is None:
+        return {}
+    if not isinstance(value, dict):
+        raise type_error(key, "a mapping of panel names to materials", value)
+    return {str(name): PanelMaterial.build(body, f"{key}.{name}") for name, body in value.items()}
 
 
 # ---------------------------------------------------------------------------- scene
@@ -300,6 +377,30 @@ def pins(value, key):
 
 
 @dataclass(frozen=True)
+class Attach(Section):
+    """Garment ``vertices`` tied to collider ``to``'s surface: to its nearest point at t = 0,
+    at the distance they start from it, carried with the collider's motion."""
+
+    vertices: tuple = setting((), vertex_list)
+    to: int = setting(0, integer(minimum=0))
+
+    def finish(self, given, key):
+        for name in ("vertices", "to"):
+            if name not in given:
+                raise InputError(f"{key} needs '{name}'")
+        return self
+
+
+def attach_list(value, key):
+    """One ``{vertices: [...], to: K}`` or a list of them."""
+    if isinstance(value, dict):
+        return (Attach.build(value, key),)
+    if not isinstance(value, list):
+        raise type_error(key, "{vertices: [...], to: K} or a list of them", value)
+    return tuple(Attach.build(item, f"{key}[{i}]") for i, item in enumerate(value))
+
+
+@dataclass(frozen=True)
 class Scene(Section):
     """``collision_margin`` (m): cloth rests this far from every collider surface;
     ``self_collision``: cloth–cloth contact, None = off. The implicit method's contact
@@ -314,8 +415,14 @@ class Scene(Section):
     activation_distance: float | None = setting(None, positive)
     self_collision: SelfCollision | None = section(
         SelfCollision, optional=True, what="a mapping (thickness, friction)")
+    attach: tuple = setting((), attach_list)
 
     def finish(self, given, key):
+        for i, a in enumerate(self.attach):
+            where = f"scene.attach[{i}]" if len(self.attach) > 1 else "scene.attach"
+            if a.to >= len(self.colliders):
+                raise InputError(f"{where}.to: collider {a.to} out of range (the scene has "
+                                 f"{len(self.colliders)} colliders)")
         d = self.activation_distance
         for what, xi in (("scene.collision_margin", self.collision_margin),
                          ("self_collision.thickness",
@@ -395,6 +502,7 @@ class Output(Section):
 class Config(Section):
     mesh: MeshSpec = section(MeshSpec)
     material: Material = section(Material)
+    materials: dict = field(default_factory=dict, metadata={"check": panel_materials})
     scene: Scene = section(Scene)
     solver: Solver = section(Solver)
     time: Time = section(Time)
@@ -403,7 +511,10 @@ class Config(Section):
 
     def finish(self, given, key):
         if "mesh" not in given:
-            raise InputError("missing section 'mesh' (give mesh.grid or mesh.ply)")
+            raise InputError("missing section 'mesh' (give mesh.grid, mesh.ply or mesh.obj)")
+        if self.mesh.seams and self.scene.self_collision is None:
+            raise InputError("mesh.seams: sewing needs scene.self_collision (the panels must "
+                             "not pass through each other while they are pulled together)")
         return self
 
     @property

@@ -4,9 +4,9 @@ An elastic energy has a block :attr:`pattern` (which vertex pairs it couples),
 :meth:`energy` (W at x, for the line search and the statistics) and
 :meth:`assemble` (W, ∇W and the PSD-projected Hessian K in block-CSR form).
 
-- :class:`FemElastic`: the finite-element cloth of ``implicit`` and ``explicit``:
-  Baraff–Witkin stretch and shear in Kim's form (``membrane``) plus plate (``plate``),
-  dihedral or quadratic bending (``bending``);
+- :class:`FemElastic`: the finite-element cloth of ``implicit``, ``explicit`` and ``vbd``: the
+  sum of the Model's ``terms`` (:mod:`clothtool.sim.terms`): Baraff–Witkin stretch and shear in
+  Kim's form, plate, dihedral or quadratic bending, and a garment's stitches while it is sewn;
 - :class:`SpringElastic`: the spring network of ``mass-spring``
   (``springs``), Σ ½k_e(‖x_i − x_j‖ − L_e)² with PSD-clamped spring Hessians.
 """
@@ -15,58 +15,37 @@ from functools import cached_property
 
 import numpy as np
 
-from clothtool.sim.bending import dihedral_assemble, dihedral_total_energy, quadratic_gradient
 from clothtool.sim.linalg.blocks import BlockPattern
-from clothtool.sim.membrane import membrane_assemble, membrane_total_energy
-from clothtool.sim.plate import hessian_gradient
 from clothtool.sim.springs import spring_assemble, spring_energy
 
 
-def fem_elastic_energy(model, x):
-    """W(x) of the finite-element material: stretch + shear (Kim 2020) + bending."""
-    total = 0.0
-    if model.has_membrane:
-        total += membrane_total_energy(x, model.faces, model.dr_inv, model.area,
-                                       model.stretch, model.k_shear)
-    if model.bend_model == "hessian":
-        total += hessian_gradient(x, *model.plate, np.zeros((0, 3)))
-    elif model.bend_model == "dihedral":
-        total += dihedral_total_energy(x, model.hinge, model.hinge_rest_angle, model.hinge_coef)
-    elif model.bend_model == "quadratic":  # an empty gradient array: energy only
-        total += quadratic_gradient(x, model.hinge, model.hinge_weights, model.hinge_coef,
-                                    np.zeros((0, 3)))
-    return total
-
-
 class FemElastic:
-    """Stretch + shear (Kim 2020) + plate, dihedral or quadratic bending, on the Model's pattern."""
+    """W = Σ over the Model's terms, on the Model's pattern (the terms' constant Hessians
+    summed once in ``model.constant_hessian``); or over other ``terms`` on that pattern with
+    their ``constant`` (per-panel damping's β-scaled terms)."""
 
-    def __init__(self, model):
+    def __init__(self, model, terms=None, constant=None):
         self.model = model
         self.pattern = model.pattern
+        self.terms = model.terms if terms is None else terms
+        self.constant = model.constant_hessian if terms is None else constant
 
     def energy(self, x):
-        return fem_elastic_energy(self.model, x)
+        total = 0.0
+        for term in self.terms:
+            total += term.energy(x)
+        return total
 
     def assemble(self, x, grad, values):
         """W(x); overwrites grad (N, 3) with ∇W and values with the projected Hessian K."""
-        model = self.model
         grad[:] = 0.0
-        if model.constant_hessian is not None:
-            values[:] = model.constant_hessian
+        if self.constant is not None:
+            values[:] = self.constant
         else:
             values[:] = 0.0
         total = 0.0
-        if model.has_membrane:
-            total += membrane_assemble(x, model.faces, model.dr_inv, model.area, model.stretch,
-                                       model.k_shear, model.tri_slots, grad, values)
-        if model.bend_model == "hessian":  # its constant Hessian is in constant_hessian
-            total += hessian_gradient(x, *model.plate, grad)
-        elif model.bend_model == "dihedral":
-            total += dihedral_assemble(x, model.hinge, model.hinge_rest_angle, model.hinge_coef,
-                                       model.hinge_slots, grad, values)
-        elif model.bend_model == "quadratic":
-            total += quadratic_gradient(x, model.hinge, model.hinge_weights, model.hinge_coef, grad)
+        for term in self.terms:
+            total += term.assemble(x, grad, values)
         return total
 
 

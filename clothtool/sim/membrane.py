@@ -10,8 +10,9 @@ Energy densities (J/m², stiffnesses in N/m), integrated over the rest area A:
 
 with warp and weft stiffnesses k_u, k_v and Baraff–Witkin's rest length factors
 b_u, b_v (the stretch conditions C_u = a(‖w_u‖ − b_u), C_v = a(‖w_v‖ − b_v) of
-Baraff & Witkin 1998, "Large steps in cloth simulation", §4.2); the kernels take them
-as one array ``stretch`` = (k_u, k_v, b_u, b_v). Baraff–Witkin's conditions scale
+Baraff & Witkin 1998, "Large steps in cloth simulation", §4.2); the element kernels take
+them as one array ``stretch`` = (k_u, k_v, b_u, b_v), the mesh kernels one such row per
+triangle (``stretch`` (M, 4), ``k_shear`` (M,): each panel of a garment its own material). Baraff–Witkin's conditions scale
 with the square of the triangle area; these densities do not, so refining a mesh
 converges.
 
@@ -255,14 +256,15 @@ def _stretch_vertex(f, k, b, weight, hess):
 
 @njit(cache=True)
 def membrane_assemble(x, faces, dr_inv, area, stretch, k_shear, slots, grad, values):
-    """W_membrane(x); adds its gradient to grad (N, 3) and projected Hessian blocks to values."""
+    """W_membrane(x); adds its gradient to grad (N, 3) and projected Hessian blocks to values
+    (``stretch`` (M, 4), ``k_shear`` (M,) per triangle, as in every mesh kernel here)."""
     g = np.empty(9)
     hess = np.empty((9, 9))
     work = np.empty((6, 6))
     total = 0.0
     for t in range(faces.shape[0]):
         total += membrane_element(load(x, faces[t, 0]), load(x, faces[t, 1]), load(x, faces[t, 2]),
-                                  dr_inv[t], area[t], stretch, k_shear, True, g, hess, work)
+                                  dr_inv[t], area[t], stretch[t], k_shear[t], True, g, hess, work)
         for a in range(3):
             v = faces[t, a]
             for p in range(3):
@@ -282,7 +284,7 @@ def membrane_gradient(x, faces, dr_inv, area, stretch, k_shear, grad):
     for t in range(faces.shape[0]):
         f0, f1, alpha, beta = _deformation(load(x, faces[t, 0]), load(x, faces[t, 1]),
                                            load(x, faces[t, 2]), dr_inv[t])
-        g0, g1 = _stress(f0, f1, stretch, k_shear)
+        g0, g1 = _stress(f0, f1, stretch[t], k_shear[t])
         a = area[t]
         for v in range(3):
             vi = faces[t, v]
@@ -299,7 +301,7 @@ def membrane_hessian_product(x, faces, dr_inv, area, stretch, k_shear, scale_by,
     work = np.empty((6, 6))
     for t in range(faces.shape[0]):
         membrane_element(load(x, faces[t, 0]), load(x, faces[t, 1]), load(x, faces[t, 2]),
-                         dr_inv[t], area[t], stretch, k_shear, True, g, hess, work)
+                         dr_inv[t], area[t], stretch[t], k_shear[t], True, g, hess, work)
         for a in range(3):
             ia = faces[t, a]
             for p in range(3):
@@ -316,7 +318,7 @@ def membrane_total_energy(x, faces, dr_inv, area, stretch, k_shear):
     total = 0.0
     for t in range(faces.shape[0]):
         total += membrane_energy(load(x, faces[t, 0]), load(x, faces[t, 1]), load(x, faces[t, 2]),
-                                 dr_inv[t], area[t], stretch, k_shear)
+                                 dr_inv[t], area[t], stretch[t], k_shear[t])
     return total
 
 

@@ -36,7 +36,11 @@ FRICTION = "friction"  # Coulomb friction on colliders (scene.colliders[i].*.fri
 CONTACT = "contact"  # barrier contact (capsules, boxes, meshes, moving colliders, self-collision)
 MOVING_PINS = "moving pins"  # scene.pins entries with rotate or translate
 BDF2 = "bdf2"  # solver.integrator: bdf2 (the default; refused only when a config sets it)
-FEATURES = (FRICTION, CONTACT, MOVING_PINS, BDF2)
+MATERIALS = "per-panel materials"  # materials: per-triangle stiffness, density and bending
+SEAMS = "seams"  # mesh.seams: the stitch term and the weld (clothtool.sim.seams)
+ATTACH = "attach"  # scene.attach: vertices carried by a collider's surface (moving pins)
+PANEL_DAMPING = "per-panel damping"  # materials.NAME.damping other than material.damping
+FEATURES = (FRICTION, CONTACT, MOVING_PINS, BDF2, MATERIALS, SEAMS, ATTACH, PANEL_DAMPING)
 
 
 @dataclass(frozen=True)
@@ -53,7 +57,8 @@ class Method:
 
 METHODS = {m.name: m for m in (
     Method("implicit", "clothtool.sim.solvers.implicit:ImplicitEuler",
-           frozenset({FRICTION, CONTACT, MOVING_PINS, BDF2}),
+           frozenset({FRICTION, CONTACT, MOVING_PINS, BDF2, MATERIALS, SEAMS, ATTACH,
+                      PANEL_DAMPING}),
            "finite-element cloth, BDF2 or backward Euler, Newton + filtered PCG"),
     Method("mass-spring", "clothtool.sim.solvers.mass_spring:MassSpringImplicit",
            frozenset({BDF2}), "spring network, BDF2 or backward Euler, Newton + PCG"),
@@ -61,9 +66,9 @@ METHODS = {m.name: m for m in (
     Method("xpbd", "clothtool.sim.solvers.xpbd:ExtendedPositionBased", summary="extended PBD"),
     Method("projective", "clothtool.sim.solvers.projective:ProjectiveDynamics",
            summary="Projective Dynamics"),
-    Method("explicit", "clothtool.sim.solvers.explicit:SymplecticEuler",
+    Method("explicit", "clothtool.sim.solvers.explicit:SymplecticEuler", frozenset({MATERIALS}),
            summary="symplectic Euler with automatic internal steps"),
-    Method("vbd", "clothtool.sim.solvers.vbd:VertexBlockDescent",
+    Method("vbd", "clothtool.sim.solvers.vbd:VertexBlockDescent", frozenset({MATERIALS}),
            summary="Vertex Block Descent on the finite-element cloth"),
 )}
 
@@ -88,6 +93,15 @@ def requested_features(config, given=()):
         motion = getattr(pin, "motion", None)
         if motion is not None:
             out.append((MOVING_PINS, f"scene.pins[{i}].{'rotate' if pin.rotate else 'translate'}"))
+    if config.materials:
+        out.append((MATERIALS, "materials"))
+    for name, panel in config.materials.items():
+        if panel.damping is not None and panel.damping != config.material.damping:
+            out.append((PANEL_DAMPING, f"materials.{name}.damping"))
+    if config.mesh.seams:
+        out.append((SEAMS, "mesh.seams"))
+    if config.scene.attach:
+        out.append((ATTACH, "scene.attach"))
     return out
 
 

@@ -60,6 +60,7 @@ import numpy as np
 from clothtool.errors import NumericalError
 from clothtool.sim.collide import resolve_collisions
 from clothtool.sim.contact import BarrierContact
+from clothtool.sim.energy import FemElastic
 from clothtool.sim.filter import apply_filter
 from clothtool.sim.integrator import Integrator, StepReport, gravity_potential, mass_weighted
 from clothtool.sim.linalg.blocks import BlockMatrix, ConstraintFilter
@@ -109,6 +110,9 @@ class NewtonIntegrator(Integrator):
         pattern = self.elastic.pattern
         self.matrix = BlockMatrix(pattern)
         self._damping = BlockMatrix(pattern) if model.damping > 0 else None
+        # per-panel damping (materials): the terms with their stiffness × β_e
+        self._panel_damping = (FemElastic(model, model.damping_terms, model.damping_constant)
+                               if model.damping_terms is not None else None)
         self._grad = np.zeros((n, 3))
         self._tmp = np.zeros((n, 3))
         self._damped = np.zeros((n, 3))
@@ -119,7 +123,7 @@ class NewtonIntegrator(Integrator):
         self.contact = None  # mesh colliders and self-collision (clothtool.sim.contact)
         if model.contact is not None:
             self.contact = BarrierContact(model.contact, model.mass, model.free, h,
-                                          max(model.stretch[0], model.stretch[1], model.k_shear),
+                                          max(model.tri_stretch[:, :2].max(), model.tri_shear.max()),
                                           solver.friction_velocity)
             self.contact.check_initial(model.mesh.positions)
 
@@ -197,7 +201,10 @@ class NewtonIntegrator(Integrator):
         grad = np.zeros_like(x0)
         self.elastic.assemble(x0, grad, matrix.values)
         force = -grad
-        if self._damping is not None:
+        if self._panel_damping is not None:  # Σ_e β_e K_e v_0 (per-panel damping)
+            self._panel_damping.assemble(x0, np.zeros_like(x0), self._damping.values)
+            force -= self._damping.multiply(v0, np.empty_like(v0))
+        elif self._damping is not None:
             force -= model.damping * matrix.multiply(v0, np.empty_like(v0))
         matrix.add_diagonal(model.mass / (h * h))
         elastic = np.zeros_like(x0)
@@ -208,9 +215,14 @@ class NewtonIntegrator(Integrator):
             a0[model.pinned] = 0.0
         return x0 - h * v0 + (0.5 * h * h) * a0, v0 - h * a0
 
-    def _freeze_damping(self, k_values, beta_over_h, displacement):
-        """D = (β/ĥ) K(x_n) from the blocks of K(x_n), frozen for the step, and D(x − base)."""
-        np.multiply(k_values, beta_over_h, out=self._damping.values)
+    def _freeze_damping(self, k_values, beta_over_h, displacement, x_n):
+        """D = (β/ĥ) K(x_n) from the blocks of K(x_n), frozen for the step, and D(x − base);
+        with per-panel β, D = (1/ĥ) Σ_e β_e K_e(x_n) from the β-scaled terms."""
+        if self._panel_damping is not None:
+            self._panel_damping.assemble(x_n, np.zeros_like(x_n), self._damping.values)
+            self._damping.values *= beta_over_h / self.model.damping
+        else:
+            np.multiply(k_values, beta_over_h, out=self._damping.values)
         self._damping.multiply(displacement, self._damped)
 
     def step(self, state):
@@ -248,7 +260,7 @@ class NewtonIntegrator(Integrator):
         from_x_n = solver.newton_iterations == 1 or contact is not None  # x starts equal to x_n
         if damped and not from_x_n:
             self.elastic.assemble(x_n, self._grad, values)
-            self._freeze_damping(values, model.damping / h_eff, x - base)
+            self._freeze_damping(values, model.damping / h_eff, x - base, x_n)
         # moving pins and colliders still short of their goal get three times as many more steps
         for it in range(4 * solver.newton_iterations):
             if it >= solver.newton_iterations and self._behind(x, moving, goal) <= REACHED:
@@ -256,7 +268,7 @@ class NewtonIntegrator(Integrator):
             elastic = self.elastic.assemble(x, self._grad, values)
             if damped:
                 if it == 0 and from_x_n:
-                    self._freeze_damping(values, model.damping / h_eff, x - base)
+                    self._freeze_damping(values, model.damping / h_eff, x - base, x_n)
                 values += self._damping.values
             matrix.add_diagonal(inertia)
             # ∇E = M(x − x̃)/ĥ² − M g + ∇W + D(x − base)

@@ -1,9 +1,11 @@
 """Simulation output: ``frame_NNNNN.ply`` files and ``stats.csv``.
 
 Frames are binary little-endian PLY with double coordinates and the rest
-coordinates written as ``s t`` vertex properties (metres), so that
+coordinates written as ``s t`` vertex properties (metres), or, for a pattern per
+corner (a garment), as the face list ``texcoord`` (u v per corner, metres), so that
 ``clothtool analyze DIR --reference uv`` measures strain against the rest
-pattern. The file number is the frame number (``frame_00000.ply`` is the
+pattern. A sewn garment is written in the file's vertex numbering (the welded
+vertices of a seam at one position). The file number is the frame number (``frame_00000.ply`` is the
 initial state). Each PLY is written under a temporary name and renamed, and
 every stats row is flushed, so a run that stops early leaves valid files.
 """
@@ -39,11 +41,13 @@ class FrameWriter:
     first, so the folder never mixes two runs; other files are left alone.
     """
 
-    def __init__(self, out_dir, faces, uv, columns=STATS_COLUMNS):
+    def __init__(self, out_dir, faces, uv, columns=STATS_COLUMNS, corner_uv=None):
         self.out_dir = Path(out_dir)
         self.columns = tuple(columns)
         self.faces = faces
         self.properties = {"s": uv[:, 0].copy(), "t": uv[:, 1].copy()} if uv is not None else None
+        self.face_properties = ({"texcoord": corner_uv.reshape(len(faces), 6).copy()}
+                                if corner_uv is not None else None)
         try:
             self.out_dir.mkdir(parents=True, exist_ok=True)
         except FileExistsError:
@@ -63,7 +67,7 @@ class FrameWriter:
 
     def write_frame(self, frame, positions):
         write_ply(frame_path(self.out_dir, frame), positions, self.faces,
-                  vertex_properties=self.properties)
+                  vertex_properties=self.properties, face_properties=self.face_properties)
 
     def write_stats(self, row):
         self._stats.writerow([_format(row[name]) for name in self.columns])

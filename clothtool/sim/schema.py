@@ -227,6 +227,8 @@ def as_dict(obj):
         return {f.name: as_dict(getattr(obj, f.name)) for f in dataclasses.fields(obj)}
     if isinstance(obj, tuple):
         return [as_dict(v) for v in obj]
+    if isinstance(obj, dict):
+        return {k: as_dict(v) for k, v in obj.items()}
     if isinstance(obj, Path):
         return str(obj)
     return obj

@@ -93,7 +93,7 @@ def specimen_model(uv, faces, pinned, material, folder, gravity=(0.0, 0.0, -STAN
 
     from clothtool.io.ply import write_ply
     from clothtool.sim.config import load_config
-    from clothtool.sim.model import build_model
+    from clothtool.sim.builder import build_model
 
     path = Path(folder) / "specimen.ply"
     positions = np.concatenate([uv, np.zeros((len(uv), 1))], axis=1)

@@ -55,7 +55,7 @@ def run_in_memory(config, checkpoints=(), *, warmup=True, bound=100.0, initial=N
     speed exceeds ``solver.max_speed`` or a vertex leaves a ball of ``bound``
     metres around the origin.
     """
-    from clothtool.sim.model import build_model
+    from clothtool.sim.builder import build_model
     from clothtool.sim.methods import make_integrator
 
     if not isinstance(config, Config):

@@ -55,11 +55,11 @@ def elastic_forces(model, x, v, out):
     beta = model.damping
     out[:] = 0.0
     if model.has_membrane:
-        membrane_gradient(x, model.faces, model.dr_inv, model.area, model.stretch,
-                          model.k_shear, out)
+        membrane_gradient(x, model.faces, model.dr_inv, model.area, model.tri_stretch,
+                          model.tri_shear, out)
         if beta > 0.0:
-            membrane_hessian_product(x, model.faces, model.dr_inv, model.area, model.stretch,
-                                     model.k_shear, beta, v, out)
+            membrane_hessian_product(x, model.faces, model.dr_inv, model.area, model.tri_stretch,
+                                     model.tri_shear, beta, v, out)
     if model.bend_model == "hessian":
         hessian_gradient(x, *model.plate, out)
         if beta > 0.0:

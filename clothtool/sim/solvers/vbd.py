@@ -131,7 +131,7 @@ def damping_data(x, faces, dr_inv, area, stretch, k_shear, bend, hinge, tri_hf, 
     g, hess = np.empty(9), np.empty((9, 9))
     for t in range(tri_hf.shape[0]):
         x0, x1, x2 = load(x, faces[t, 0]), load(x, faces[t, 1]), load(x, faces[t, 2])
-        membrane_element(x0, x1, x2, dr_inv[t], area[t], stretch, k_shear, True, g, hess,
+        membrane_element(x0, x1, x2, dr_inv[t], area[t], stretch[t], k_shear[t], True, g, hess,
                          tri_hf[t])
         f0, f1 = deformation_gradient(x0, x1, x2, dr_inv[t])
         for p in range(3):
@@ -190,7 +190,7 @@ def vertex_system(i, x, x_n, y, mass, inv_h2, faces, dr_inv, area, stretch, k_sh
         for k in range(tri_ptr[i], tri_ptr[i + 1]):
             t, a = tri_elem[k], tri_corner[k]
             membrane_vertex(load(x, faces[t, 0]), load(x, faces[t, 1]), load(x, faces[t, 2]),
-                            dr_inv[t], area[t], stretch, k_shear, a, g, hmat)
+                            dr_inv[t], area[t], stretch[t], k_shear[t], a, g, hmat)
             if damp > 0.0:
                 membrane_damping(load(x, faces[t, 0]), load(x, faces[t, 1]), load(x, faces[t, 2]),
                                  dr_inv[t], area[t], a, tri_damp[t], tri_f[t], damp, g, hmat)
@@ -366,8 +366,8 @@ class VertexBlockDescent(Integrator):
     def _args(self, x, x_n, y):
         """The arguments of :func:`vertex_system` after the vertex index."""
         m = self.model
-        return (x, x_n, y, m.mass, 1.0 / (self.h * self.h), m.faces, m.dr_inv, m.area, m.stretch,
-                m.k_shear, m.has_membrane, *self.tri, self.bend, m.hinge, m.hinge_rest_angle,
+        return (x, x_n, y, m.mass, 1.0 / (self.h * self.h), m.faces, m.dr_inv, m.area, m.tri_stretch,
+                m.tri_shear, m.has_membrane, *self.tri, self.bend, m.hinge, m.hinge_rest_angle,
                 m.hinge_coef, self.weights, *self.plate, *self.hinges, self.damp, self.tri_damp, self.tri_f,
                 self.hinge_damp)
 
@@ -375,7 +375,7 @@ class VertexBlockDescent(Integrator):
         """The step's damping data (:func:`damping_data` at x_n; only with damping)."""
         m = self.model
         if self.damp > 0.0:
-            damping_data(x_n, m.faces, m.dr_inv, m.area, m.stretch, m.k_shear, self.bend,
+            damping_data(x_n, m.faces, m.dr_inv, m.area, m.tri_stretch, m.tri_shear, self.bend,
                          m.hinge, self.tri_damp, self.tri_f, self.hinge_damp)
 
     def solve(self, x, x_n, y, sweeps, rho=0.0, tolerance=0.0):

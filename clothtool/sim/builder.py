@@ -1,0 +1,356 @@
+"""The ModelBuilder: config → Model in steps, NVIDIA Newton's ``ModelBuilder`` the pattern.
+
+A builder collects the cloth (its rest mesh and per-triangle material arrays), the panels'
+own materials, the seams, the pins, the colliders and the attachments, each checked as it
+is added, and :meth:`ModelBuilder.finalize` computes the rest data (D_r⁻¹, rest areas, lumped
+masses m_v = Σ ρ_t A_t/3, hinges), the elastic terms (:mod:`clothtool.sim.terms`) and the block
+pattern they share, and returns the :class:`~clothtool.sim.model.Model`. A sewn garment is
+finalized again after its weld (:func:`clothtool.sim.seams.weld`), from a builder of the
+welded mesh.
+"""
+
+import numpy as np
+
+from clothtool.errors import InputError
+from clothtool.geometry import hinges
+from clothtool.sim.config import Plane, Sphere
+from clothtool.sim.contact import build_contact_scene
+from clothtool.sim.filter import FREE, PINNED
+from clothtool.sim.linalg.blocks import BlockPattern
+from clothtool.sim.mesh import build_rest_mesh, flat_pattern, rest_edge_matrices
+from clothtool.sim.methods import barrier_contact
+from clothtool.sim.model import Model
+from clothtool.sim.motion import resolve_pin_entries
+from clothtool.sim.schema import suggest
+from clothtool.sim.terms import (DihedralBending, Membrane, PlateBending, QuadraticBending,
+                                 Stitch, Term)
+
+DEGENERATE = 1e-12  # rest triangle area relative to its squared longest edge
+
+
+def build_model(config):
+    """Model from a validated :class:`~clothtool.sim.config.Config`: config → builder → Model."""
+    return ModelBuilder.from_config(config).finalize()
+
+
+class ModelBuilder:
+    """Add the cloth, then its materials, seams, pins, colliders and attachments; finalize."""
+
+    def __init__(self):
+        self.mesh = None
+        self.material = None
+        self.stitches = np.zeros((0, 2), np.int64)  # (S, 2) vertex pairs sewn together
+        self.stitch_stiffness = np.zeros(0)  # (S,) N/m
+        self.pinned = np.zeros(0, np.int64)
+        self.pin_motions = []
+        self.config = None  # the config whose scene the colliders come from
+        self.origin = None  # (N, 3) positions at t = 0, when they differ from mesh.positions
+        self.file_vertex = None  # (N_file,) the model vertex of each vertex of the file
+        self.attach, self.attach_vertices = (), []  # scene.attach and each entry's vertices
+        self.attach_time = 0.0  # when the attachments take hold (a sewn garment: its weld)
+        self.sewing, self.weld_distance = None, 0.0  # mesh.sewing and its weld distance (m)
+
+    @classmethod
+    def from_config(cls, config):
+        from clothtool.sim.seams import add_config_seams
+
+        builder = cls()
+        builder.add_cloth(build_rest_mesh(config.mesh), config.material)
+        builder.add_materials(config.materials)
+        add_config_seams(builder, config.mesh, config.scene)
+        builder.add_pins(config.scene.pins)
+        builder.add_colliders(config)
+        builder.add_attachments(config.scene.attach)
+        return builder
+
+    # ------------------------------------------------------------------ the cloth
+
+    def add_cloth(self, mesh, material):
+        """The rest mesh and one material for every triangle (``material``, a
+        :class:`~clothtool.sim.config.Material`)."""
+        n, faces = len(mesh.positions), mesh.faces
+        where = f"{mesh.path}: " if mesh.path is not None else "mesh: "
+        if faces.min() < 0 or faces.max() >= n:
+            raise InputError(f"{where}face index out of range")
+        dr = rest_edge_matrices(mesh)
+        det = dr[:, 0, 0] * dr[:, 1, 1] - dr[:, 0, 1] * dr[:, 1, 0]
+        area = 0.5 * np.abs(det)
+        edges = _rest_edges(mesh)
+        longest = np.max(np.einsum("mkp,mkp->mk", edges, edges), axis=1)
+        bad = np.flatnonzero(area <= DEGENERATE * longest)
+        if len(bad):
+            raise InputError(f"{where}rest triangle {bad[0]} is degenerate (zero area in the rest "
+                             f"{'uv' if flat_pattern(mesh) else 'mesh'}); {len(bad)} such "
+                             "triangles")
+        self.mesh, self.material, self.dr, self.area = mesh, material, dr, area
+        m = len(faces)
+        k, b = _warp_weft(material.stretch, material.rest_stretch, mesh, "material")
+        self.tri_stretch = np.tile(np.concatenate([k, b]), (m, 1))
+        self.tri_shear = np.full(m, material.shear)
+        self.tri_density = np.full(m, material.density)
+        self.tri_bend = np.full(m, material.bend)
+        self.tri_damping = np.full(m, material.damping)
+        return self
+
+    def add_materials(self, materials, key="materials"):
+        """Each panel's own material (``{name: PanelMaterial}``): its triangles are an OBJ
+        group's or material's, or its ``faces``; the keys it gives replace ``material``'s."""
+        mesh = self.mesh
+        m = len(mesh.faces)
+        for name, panel in materials.items():
+            here = f"{key}.{name}"
+            if panel.faces is not None:
+                tri = np.asarray(panel.faces, np.int64)
+                if tri.max() >= m:
+                    j = int(np.argmax(tri >= m))
+                    raise InputError(f"{here}.faces[{j}]: triangle {int(tri[j])} out of range "
+                                     f"(the mesh has {m} triangles)")
+            else:
+                groups = mesh.groups or {}
+                if name not in groups:
+                    known = ", ".join(sorted(groups)) if groups else "none"
+                    raise InputError(f"{here}: {mesh.path or 'the mesh'} has no group (g) or "
+                                     f"material (usemtl) {name!r}{suggest(name, groups)} "
+                                     f"(its groups: {known}); or give the panel's faces")
+                tri = groups[name]
+            if panel.stretch is not None or panel.rest_stretch is not None:
+                old = self.tri_stretch[tri[0]]
+                k, b = _warp_weft(panel.stretch if panel.stretch is not None else tuple(old[:2]),
+                                  panel.rest_stretch if panel.rest_stretch is not None
+                                  else tuple(old[2:]), mesh, here)
+                self.tri_stretch[tri] = np.concatenate([k, b])
+            for attr, value in (("tri_shear", panel.shear), ("tri_density", panel.density),
+                                ("tri_bend", panel.bend), ("tri_damping", panel.damping)):
+                if value is not None:
+                    getattr(self, attr)[tri] = value
+        return self
+
+    def add_stitches(self, pairs, stiffness):
+        """Vertex pairs (S, 2) pulled together by the stitch term, ``stiffness`` (S,) N/m each."""
+        self.stitches = np.concatenate([self.stitches, np.asarray(pairs, np.int64)])
+        self.stitch_stiffness = np.concatenate([self.stitch_stiffness, stiffness])
+        return self
+
+    # ------------------------------------------------------------------ the scene
+
+    def add_pins(self, entries, key="scene.pins"):
+        """Pinned vertices and the moving pin groups (scene.pins entries)."""
+        pinned, motions = resolve_pin_entries(entries, len(self.mesh.positions),
+                                              self.mesh.grid_shape, key)
+        self.pinned = np.union1d(self.pinned, pinned).astype(np.int64)
+        self.pin_motions = self.pin_motions + motions
+        return self
+
+    def add_colliders(self, config):
+        """The colliders of ``config.scene`` (contact barrier or projected, by its method)."""
+        self.config = config
+        return self
+
+    def add_attachments(self, attach, key="scene.attach"):
+        """Vertices carried by a collider's surface (:mod:`clothtool.sim.attach`): moving pins."""
+        from clothtool.sim.attach import check_attach
+
+        self.attach = attach
+        self.attach_vertices = check_attach(attach, self.mesh, self.pinned, key)
+        return self
+
+    def welded(self, model, state):
+        """(builder, state) of the garment with its seams welded (:func:`clothtool.sim.seams.weld`):
+        the same triangles on fewer vertices, each with its rest shape and material, pins and
+        attachments renumbered, no stitches."""
+        from clothtool.sim.seams import weld
+
+        (mesh, origin, file_vertex, pinned, motions), state = weld(self, model, state)
+        out = ModelBuilder()
+        out.mesh, out.material, out.config = mesh, self.material, self.config
+        out.dr, out.area = self.dr, self.area
+        for attr in ("tri_stretch", "tri_shear", "tri_density", "tri_bend", "tri_damping"):
+            setattr(out, attr, getattr(self, attr))
+        out.pinned, out.pin_motions = pinned, motions
+        out.origin, out.file_vertex = origin, file_vertex
+        out.attach, out.attach_time = self.attach, state.time
+        out.attach_vertices = [np.unique(file_vertex[v]) for v in self.attach_vertices]
+        return out, state
+
+    # ------------------------------------------------------------------ finalize
+
+    def finalize(self):
+        """The :class:`~clothtool.sim.model.Model` of everything added."""
+        mesh, config = self.mesh, self.config
+        n, faces = len(mesh.positions), mesh.faces
+        dr_inv = np.linalg.inv(self.dr)
+        mass = np.zeros(n)
+        np.add.at(mass, faces.ravel(), np.repeat(self.tri_density * self.area / 3.0, 3))
+        if np.any(mass == 0):
+            raise InputError(f"mesh: vertex {np.flatnonzero(mass == 0)[0]} belongs to no triangle")
+
+        # the methods with barrier contact take every collider into it; the others project
+        # vertices out of spheres and planes (clothtool.sim.collide)
+        contact = build_contact_scene(config, mesh) if barrier_contact(config) else None
+        pinned, pin_motions = self.pinned, list(self.pin_motions)
+        if self.attach and not len(self.stitches):  # a garment is attached once it is sewn
+            from clothtool.sim.attach import attach_motions
+
+            attached = attach_motions(self.attach, self.attach_vertices, contact.colliders,
+                                      mesh.positions, self.attach_time)
+            pin_motions += attached
+            pinned = np.union1d(pinned, np.concatenate([a.vertices for a in attached]))
+        free = np.ones(n, dtype=np.bool_)
+        free[pinned] = False
+        kind = np.full(n, FREE, dtype=np.int8)
+        kind[pinned] = PINNED
+        projected = () if contact is not None else config.scene.colliders
+        spheres = [c for c in projected if isinstance(c, Sphere)]
+        planes = [c for c in projected if isinstance(c, Plane)]
+        sphere_arr = np.array([[*c.center, c.radius] for c in spheres],
+                              dtype=np.float64).reshape(-1, 4)
+        plane_arr = np.array([[*c.point, *(np.asarray(c.normal) / np.linalg.norm(c.normal))]
+                              for c in planes], dtype=np.float64).reshape(-1, 6)
+
+        gravity = np.asarray(config.scene.gravity, dtype=np.float64)
+        if len(self.stitches) and not self.sewing.gravity:
+            gravity = np.zeros(3)  # sewn without gravity (mesh.sewing.gravity)
+        bend_model, hinge, hinge_faces, rest_angle, coef, weights = self._bending()
+        plate = None
+        if bend_model == "hessian":
+            from clothtool.sim.plate import hessian_bending_matrix
+
+            q = hessian_bending_matrix(mesh.uv, faces) * self.tri_bend[0]
+            plate = (q.indptr.astype(np.int64), q.indices.astype(np.int64), q.data)
+        terms = []
+        terms = _elastic_terms(faces, dr_inv, self.area, self.tri_stretch, self.tri_shear,
+                               bend_model, plate, n, hinge, rest_angle, coef, weights)
+        if len(self.stitches):
+            terms.append(Stitch(self.stitches, self.stitch_stiffness))
+        pattern = BlockPattern(n, *[t.elements for t in terms])
+        constant = _bind(terms, pattern)
+        damping_terms = damping_constant = None
+        beta = self.tri_damping
+        if np.any(beta != beta[0]):  # per-panel damping: D = (1/ĥ) Σ β_e K_e, β_e per element
+            scaled = self.tri_stretch.copy()
+            scaled[:, :2] *= beta[:, None]
+            damping_terms = _elastic_terms(faces, dr_inv, self.area, scaled,
+                                           self.tri_shear * beta, bend_model, None, n, hinge,
+                                           rest_angle, coef * beta[hinge_faces].mean(axis=1),
+                                           weights)
+            damping_constant = _bind(damping_terms, pattern)
+        hinged = bend_model in ("dihedral", "quadratic")
+        return Model(
+            mesh=mesh, dr_inv=dr_inv, area=self.area, mass=mass,
+            stretch=self.tri_stretch[0].copy(), k_shear=float(self.tri_shear[0]),
+            damping=float(beta.max()), gravity=gravity,
+            bend_model=bend_model, hinge=hinge, hinge_rest_angle=rest_angle, hinge_coef=coef,
+            hinge_weights=weights, plate=plate, pinned=pinned, free=free, kind=kind,
+            spheres=sphere_arr, planes=plane_arr,
+            collision_margin=config.scene.collision_margin,
+            pattern=pattern,
+            tri_slots=pattern.slots(faces),
+            hinge_slots=pattern.slots(hinge) if hinged else np.zeros((0, 16), np.int64),
+            constant_hessian=constant, pin_motions=pin_motions, contact=contact,
+            terms=terms, tri_stretch=self.tri_stretch, tri_shear=self.tri_shear,
+            stitches=next((t for t in terms if isinstance(t, Stitch)), None),
+            origin=self.origin, file_vertex=self.file_vertex,
+            damping_terms=damping_terms, damping_constant=damping_constant,
+        )
+
+    def _bending(self):
+        """(model, hinges, rest angles, c_h, quadratic weights): c_h = k_b ‖ē‖²/(2(Ā_k + Ā_l)),
+        k_b the mean of the hinge's two triangles'; empty when bending is off or the mesh has
+        no interior edge."""
+        from clothtool.geometry import dihedral_angles
+        from clothtool.sim.bending import quadratic_weights
+
+        mesh, material = self.mesh, self.material
+        empty = (None, np.zeros((0, 4), np.int64), np.zeros((0, 2), np.int64), np.zeros(0),
+                 np.zeros(0), None)
+        if not np.any(self.tri_bend > 0.0):
+            return empty
+        faces = mesh.faces
+        hinge, hinge_faces = hinges(faces, len(mesh.positions))
+        if len(hinge) == 0:
+            return empty
+        tri_area = self.area[hinge_faces]
+        edge2 = _hinge_rest_length2(mesh, hinge, hinge_faces)
+        bend = self.tri_bend[hinge_faces].mean(axis=1)
+        coef = bend * edge2 / (2.0 * tri_area.sum(axis=1))
+        # a uv pattern is flat by definition; a PLY without uv rests in its own shape
+        flat = flat_pattern(mesh)
+        rest_angle = np.zeros(len(hinge)) if flat else dihedral_angles(mesh.rest3d, hinge)
+        weights = None
+        model = material.bend_model
+        if model == "hessian" and (mesh.uv is None or np.any(self.tri_bend != self.tri_bend[0])
+                                   or np.any(self.tri_damping != self.tri_damping[0])):
+            # a mesh that rests in its own (curved) shape, a pattern per corner (garment
+            # panels) or panels of their own bend or damping: the dihedral model
+            model = "dihedral"
+        if material.bend_model == "quadratic":
+            if mesh.uv is None and mesh.corner_uv is not None:
+                raise InputError("material.bend_model: 'quadratic' needs a rest pattern per "
+                                 "vertex (a grid, or a PLY with uv); use 'dihedral'")
+            if np.max(np.abs(rest_angle)) > 1e-6:
+                raise InputError("material.bend_model: 'quadratic' needs a flat rest state "
+                                 "(a grid, or a PLY with uv); use 'dihedral'")
+            weights = quadratic_weights(mesh.rest3d, hinge)
+        return model, hinge, hinge_faces, rest_angle, coef, weights
+
+
+def _elastic_terms(faces, dr_inv, area, stretch, shear, bend_model, plate, n, hinge, rest_angle,
+                   coef, weights):
+    """The membrane and bending terms (none whose stiffness is zero)."""
+    terms = []
+    if np.any(stretch[:, :2] > 0.0) or np.any(shear > 0.0):
+        terms.append(Membrane(faces, dr_inv, area, stretch, shear))
+    if bend_model == "hessian":
+        terms.append(PlateBending(plate, n))
+    elif bend_model == "dihedral":
+        terms.append(DihedralBending(hinge, rest_angle, coef))
+    elif bend_model == "quadratic":
+        terms.append(QuadraticBending(hinge, weights, coef))
+    return terms
+
+
+def _bind(terms, pattern):
+    """Bind the terms to the pattern; the sum of their constant Hessians (None: none)."""
+    constant = None
+    for term in terms:
+        term.bind(pattern)
+        if type(term).constant is not Term.constant:
+            constant = pattern.zeros() if constant is None else constant
+            term.constant(pattern, constant)
+    return constant
+
+
+def _rest_edges(mesh):
+    """(M, 3, 3) the rest edge vectors of every triangle (corner uv embedded when per corner)."""
+    if mesh.corner_uv is not None:
+        p = np.concatenate([mesh.corner_uv, np.zeros(mesh.corner_uv.shape[:2] + (1,))], axis=2)
+        return p - np.roll(p, 1, axis=1)
+    f = mesh.faces
+    return mesh.rest3d[f] - mesh.rest3d[np.roll(f, 1, axis=1)]
+
+
+def _hinge_rest_length2(mesh, hinge, hinge_faces):
+    """(H,) squared rest length of each hinge edge (i, j): in the first face's corner uv for a
+    pattern per corner (both faces agree unless the hinge is a seam in uv), else of rest3d."""
+    if mesh.corner_uv is None:
+        d = mesh.rest3d[hinge[:, 1]] - mesh.rest3d[hinge[:, 0]]
+        return np.einsum("hp,hp->h", d, d)
+    face = mesh.faces[hinge_faces[:, 0]]  # (H, 3)
+    uv = mesh.corner_uv[hinge_faces[:, 0]]  # (H, 3, 2)
+    rows = np.arange(len(hinge))
+    ci = np.argmax(face == hinge[:, :1], axis=1)
+    cj = np.argmax(face == hinge[:, 1:2], axis=1)
+    d = uv[rows, cj] - uv[rows, ci]
+    return np.einsum("hp,hp->h", d, d)
+
+
+def _warp_weft(stretch, rest_stretch, mesh, key):
+    """(k_u, k_v), (b_u, b_v) from a stretch and rest_stretch (a number: both)."""
+    k = np.broadcast_to(np.asarray(stretch, dtype=np.float64), 2).copy()
+    b = np.broadcast_to(np.asarray(rest_stretch, dtype=np.float64), 2).copy()
+    if not flat_pattern(mesh):  # no u and v: each triangle is measured in its own tangent frame
+        for name, pair in (("stretch", k), ("rest_stretch", b)):
+            if pair[0] != pair[1]:
+                raise InputError(f"{key}.{name}: different warp and weft values need rest uv "
+                                 "(a grid, or a PLY or OBJ with texture coordinates)")
+    return k, b

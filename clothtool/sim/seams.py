@@ -1,0 +1,200 @@
+"""Seams: panels that lie apart in the file, sewn together and then welded.
+
+``mesh.seams`` pairs two boundary polylines of the garment, vertex a[i] with b[i]. Each
+side must be a chain of boundary edges; the two sides must run opposite ways around their
+panels (as the two half-edges of one edge of an oriented surface do, so the sewn garment
+keeps one orientation) and have the same rest length in the pattern within
+``mesh.seam_tolerance`` (relative), or the seam would be sewn under strain.
+
+Sewing is the :class:`~clothtool.sim.terms.Stitch` term W = ½ Σ k_i ‖x_{a_i} − x_{b_i}‖² in the
+incremental potential, so it goes through the same Newton steps, CCD and self-collision
+barrier as everything else and stays intersection-free; k_i = ``mesh.sewing.stiffness`` ×
+the seam length around pair i (the mean of its sides' half-edges), so a seam pulls with the
+same force per metre at any resolution. Once every pair is within ``mesh.sewing.weld`` (by
+default the self-collision thickness: as close as the barrier lets two surfaces come), the
+pairs are welded: each group of sewn vertices becomes one vertex at their mean position and
+velocity, each triangle keeps its own corners' rest shape (its pattern), and the garment is
+finalized again without stitches. Welding rather than keeping stiff stitches: a stitch held
+by the barrier stays a thickness open (1–2 mm), its pairs cost barrier terms for the rest of
+the run, and no hinge bends across it; the welded seam is closed (0 mm) and bends like cloth.
+"""
+
+import numpy as np
+
+from clothtool.errors import InputError, NumericalError
+from clothtool.sim.mesh import RestMesh
+
+
+def add_config_seams(builder, mesh_spec, scene):
+    """Check ``mesh.seams`` against the mesh and add its stitches to the builder."""
+    if not mesh_spec.seams:
+        return
+    mesh = builder.mesh
+    if mesh.corner_uv is None and mesh.uv is None:
+        raise InputError(f"{mesh.path}: mesh.seams need the panels' rest pattern (texture "
+                         "coordinates: OBJ vt, PLY face texcoord or s t)")
+    pairs, stiffness = [], []
+    for k, seam in enumerate(mesh_spec.seams):
+        a, b, length = check_seam(mesh, seam.a, seam.b, mesh_spec.seam_tolerance,
+                                  f"mesh.seams[{k}]")
+        pairs.append(np.stack([a, b], axis=1))
+        stiffness.append(mesh_spec.sewing.stiffness * length)
+    builder.add_stitches(np.concatenate(pairs), np.concatenate(stiffness))
+    builder.sewing = mesh_spec.sewing
+    builder.weld_distance = (mesh_spec.sewing.weld if mesh_spec.sewing.weld is not None
+                             else scene.self_collision.thickness)
+    check_apart(mesh, builder.stitches)
+
+
+def boundary_edges(faces):
+    """{(i, j): triangle} of the boundary half-edges i → j (edges of one triangle)."""
+    half = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])
+    tri = np.tile(np.arange(len(faces)), 3)
+    key = np.sort(half, axis=1)
+    _, inverse, count = np.unique(key, axis=0, return_inverse=True, return_counts=True)
+    once = count[inverse.ravel()] == 1
+    return {(int(i), int(j)): int(t) for (i, j), t in zip(half[once], tri[once])}
+
+
+def check_seam(mesh, a, b, tolerance, key):
+    """(a, b, length (S,)): the checked sides of one seam and the seam length around each
+    pair; an InputError naming the file and the seam otherwise."""
+    where = f"{mesh.path}: {key}" if mesh.path is not None else key
+    n = len(mesh.positions)
+    a, b = np.asarray(a, np.int64), np.asarray(b, np.int64)
+    for side, ids in (("a", a), ("b", b)):
+        out = np.flatnonzero(ids >= n)
+        if len(out):
+            raise InputError(f"{where}.{side}[{out[0]}]: vertex {int(ids[out[0]])} out of range "
+                             f"(the mesh has {n} vertices)")
+    if len(a) < 2:
+        raise InputError(f"{where}: a seam needs at least 2 vertices on each side")
+    both = np.concatenate([a, b])
+    values, counts = np.unique(both, return_counts=True)
+    if np.any(counts > 1):
+        raise InputError(f"{where}: vertex {int(values[np.argmax(counts > 1)])} appears twice "
+                         "(the two sides of a seam are different vertices)")
+    edges = boundary_edges(mesh.faces)
+    signs, lengths = [], []
+    for side, ids in (("a", a), ("b", b)):
+        sign, seg = 0, np.empty(len(ids) - 1)
+        for i in range(len(ids) - 1):
+            p, q = int(ids[i]), int(ids[i + 1])
+            forward, backward = (p, q) in edges, (q, p) in edges
+            if not (forward or backward):
+                raise InputError(f"{where}.{side}: vertices {p} and {q} (items {i} and {i + 1}) "
+                                 "are not a boundary edge of the mesh")
+            s = 1 if forward else -1
+            if sign and s != sign:
+                raise InputError(f"{where}.{side}: the polyline turns back at item {i} (a side "
+                                 "runs one way along the boundary)")
+            sign = s
+            tri = edges[(p, q) if forward else (q, p)]
+            seg[i] = _rest_edge_length(mesh, tri, p, q)
+        signs.append(sign)
+        lengths.append(seg)
+    if signs[0] == signs[1]:
+        raise InputError(f"{where}: a and b run the same way around their panels; the two sides "
+                         "of a seam run opposite ways (reverse b)")
+    la, lb = float(lengths[0].sum()), float(lengths[1].sum())
+    if abs(la - lb) > tolerance * max(la, lb):
+        raise InputError(f"{where}: side a is {la:.6g} m long and b {lb:.6g} m in the pattern, "
+                         f"{abs(la - lb) / max(la, lb):.3g} apart (mesh.seam_tolerance "
+                         f"{tolerance:g})")
+    seg = 0.5 * (lengths[0] + lengths[1])  # the seam length around each pair: half of each
+    around = np.zeros(len(a))
+    around[:-1] += 0.5 * seg
+    around[1:] += 0.5 * seg
+    return a, b, around
+
+
+def _rest_edge_length(mesh, tri, p, q):
+    """Rest (pattern) length of the edge p–q of triangle tri."""
+    face = mesh.faces[tri]
+    if mesh.corner_uv is not None:
+        uv = mesh.corner_uv[tri]
+        d = uv[int(np.argmax(face == q))] - uv[int(np.argmax(face == p))]
+    elif mesh.uv is not None:
+        d = mesh.uv[q] - mesh.uv[p]
+    else:
+        d = mesh.rest3d[q] - mesh.rest3d[p]
+    return float(np.sqrt(d @ d))
+
+
+def check_apart(mesh, pairs):
+    """InputError when two panels cross each other in the file (they must start apart)."""
+    from clothtool.contact.intersect import intersecting_pairs
+    from clothtool.contact.broadphase import mesh_edges
+
+    edges = mesh_edges(mesh.faces)
+    crossing = intersecting_pairs(mesh.positions, mesh.faces, None, edges)
+    if len(crossing) == 0:
+        return
+    edge, face = edges[crossing[0][0]], int(crossing[0][1])
+    tri = int(np.flatnonzero(np.isin(mesh.faces, edge).sum(axis=1) == 2)[0])
+    raise InputError(f"{mesh.path or 'mesh'}: the panels overlap at the start: triangle {tri} "
+                     f"crosses triangle {face}; lay them out apart before sewing")
+
+
+def seam_gap(model, x):
+    """The largest distance between sewn pairs at positions x (0 without stitches)."""
+    if model.stitches is None:
+        return 0.0
+    return float(model.stitches.gaps(x).max())
+
+
+def sewn(model, x, builder):
+    """Are the seams within the weld distance at positions x?"""
+    return model.stitches is not None and seam_gap(model, x) <= builder.weld_distance
+
+
+def check_sewing(model, x, t, builder, frame):
+    """NumericalError when the sewing has run ``mesh.sewing.time`` without closing."""
+    if model.stitches is None or t < builder.sewing.time:
+        return
+    gaps = model.stitches.gaps(x)
+    s = int(np.argmax(gaps))
+    a, b = model.stitches.elements[s]
+    raise NumericalError(f"simulation failed at frame {frame}: mesh.seams did not close in "
+                         f"mesh.sewing.time ({builder.sewing.time:g} s): vertices {int(a)} and "
+                         f"{int(b)} are {gaps[s]:.3g} m apart (mesh.sewing.weld "
+                         f"{builder.weld_distance:g} m); raise mesh.sewing.stiffness or time")
+
+
+def weld(builder, model, state):
+    """The welded garment's (mesh, t = 0 positions, file vertex map, pinned vertices, pin
+    motions) and the state on it: each group of sewn vertices one vertex at
+    their mean position and velocity (see the module)."""
+    mesh, n = builder.mesh, len(builder.mesh.positions)
+    root = np.arange(n)
+    for a, b in model.stitches.elements:  # union-find: the smallest index of each group
+        ra, rb = _find(root, a), _find(root, b)
+        root[max(ra, rb)] = min(ra, rb)
+    root = np.array([_find(root, v) for v in range(n)])
+    keep, new = np.unique(root, return_inverse=True)
+    count = np.bincount(new, minlength=len(keep)).astype(np.float64)[:, None]
+
+    def merge(values):
+        out = np.zeros((len(keep),) + values.shape[1:])
+        np.add.at(out, new, values)
+        return out / count
+
+    origin = builder.origin if builder.origin is not None else mesh.positions
+    x = merge(state.x)
+    corner = mesh.corner_uv if mesh.corner_uv is not None else mesh.uv[mesh.faces]
+    welded = RestMesh(x.copy(), new[mesh.faces], None, None, x.copy(), corner, mesh.groups,
+                      mesh.path)
+    file_vertex = new if builder.file_vertex is None else new[builder.file_vertex]
+    pinned = np.unique(new[builder.pinned])
+    motions = [type(m)(np.unique(new[m.vertices]), m.motion) for m in builder.pin_motions]
+    state.x, state.v = x, merge(state.v)
+    if state.x_prev is not None:
+        state.x_prev, state.v_prev = merge(state.x_prev), merge(state.v_prev)
+    return (welded, merge(origin), file_vertex, pinned, motions), state
+
+
+def _find(root, v):
+    while root[v] != v:
+        root[v] = root[root[v]]
+        v = root[v]
+    return v

@@ -1,0 +1,163 @@
+"""The terms of the finite-element elastic energy W(x) = Σ_terms W_term(x).
+
+Each term is a potential over vertex stencils (NVIDIA Newton's ModelBuilder keeps one
+array per element kind the same way): ``elements`` are the stencils it couples (rows of
+vertex indices, for the block pattern of the system matrix), :meth:`bind` takes each
+stencil's block slots in that pattern, :meth:`constant` adds its constant Hessian (a
+quadratic term's whole Hessian) to the pattern's values once, :meth:`energy` is W_term(x)
+and :meth:`assemble` adds ∇W_term and the rest of its PSD Hessian.
+:class:`~clothtool.sim.energy.FemElastic` sums the Model's ``terms``, so a term added here
+reaches every method built on it.
+
+- :class:`Membrane`: Baraff–Witkin stretch and shear (Kim 2020, :mod:`clothtool.sim.membrane`),
+  per-triangle stiffnesses;
+- :class:`PlateBending`, :class:`DihedralBending`, :class:`QuadraticBending`: the
+  ``material.bend_model`` choices (:mod:`clothtool.sim.plate`, :mod:`clothtool.sim.bending`);
+- :class:`Stitch`: W = ½ Σ_s k_s ‖x_a − x_b‖², seam pairs pulled together while a garment
+  is sewn (:mod:`clothtool.sim.seams`).
+"""
+
+import numpy as np
+from numba import njit
+
+from clothtool.sim.bending import (dihedral_assemble, dihedral_total_energy,
+                                   quadratic_gradient)
+from clothtool.sim.linalg.blocks import scatter_blocks
+from clothtool.sim.membrane import membrane_assemble, membrane_total_energy
+from clothtool.sim.plate import hessian_gradient
+
+NO_GRADIENT = np.zeros((0, 3))  # the energy-only call of the kernels that take a gradient
+
+
+class Term:
+    """A potential over the stencils ``elements`` (see the module); no constant Hessian."""
+
+    elements = None
+
+    def bind(self, pattern):
+        pass
+
+    def constant(self, pattern, values):
+        pass
+
+
+class Membrane(Term):
+    """Σ_t A_t Ψ(F_t) with per-triangle (k_u, k_v, b_u, b_v) and k_shear."""
+
+    def __init__(self, faces, dr_inv, area, stretch, shear):
+        self.elements = faces
+        self.faces, self.dr_inv, self.area = faces, dr_inv, area
+        self.stretch = np.ascontiguousarray(stretch, dtype=np.float64)
+        self.shear = np.ascontiguousarray(shear, dtype=np.float64)
+
+    def bind(self, pattern):
+        self.slots = pattern.slots(self.faces)
+
+    def energy(self, x):
+        return membrane_total_energy(x, self.faces, self.dr_inv, self.area, self.stretch,
+                                     self.shear)
+
+    def assemble(self, x, grad, values):
+        return membrane_assemble(x, self.faces, self.dr_inv, self.area, self.stretch, self.shear,
+                                 self.slots, grad, values)
+
+
+class PlateBending(Term):
+    """½ Σ_c x_cᵀ (k_b Q) x_c, Q in CSR (ptr, col, val) with k_b folded in; constant Hessian."""
+
+    def __init__(self, plate, n):
+        self.plate = plate
+        ptr, col, _ = plate
+        self.elements = np.stack([np.repeat(np.arange(n), np.diff(ptr)), col], axis=1)
+
+    def constant(self, pattern, values):
+        slot = pattern.slots(self.elements)[:, 1]
+        for p in range(3):
+            values[slot, p, p] += self.plate[2]
+
+    def energy(self, x):
+        return hessian_gradient(x, *self.plate, NO_GRADIENT)
+
+    def assemble(self, x, grad, values):
+        return hessian_gradient(x, *self.plate, grad)
+
+
+class DihedralBending(Term):
+    """Σ_h c_h (θ_h − θ̄_h)² over hinges (i, j, k, l), Gauss–Newton Hessian."""
+
+    def __init__(self, hinge, rest_angle, coef):
+        self.elements = hinge
+        self.hinge, self.rest_angle, self.coef = hinge, rest_angle, coef
+
+    def bind(self, pattern):
+        self.slots = pattern.slots(self.hinge)
+
+    def energy(self, x):
+        return dihedral_total_energy(x, self.hinge, self.rest_angle, self.coef)
+
+    def assemble(self, x, grad, values):
+        return dihedral_assemble(x, self.hinge, self.rest_angle, self.coef, self.slots, grad,
+                                 values)
+
+
+class QuadraticBending(Term):
+    """Σ_h c_h ‖Σ_a w_ha x_a‖² (Bergou et al. 2006); constant Hessian 2c_h w wᵀ ⊗ I₃."""
+
+    def __init__(self, hinge, weights, coef):
+        self.elements = hinge
+        self.hinge, self.weights, self.coef = hinge, weights, coef
+
+    def constant(self, pattern, values):
+        w = self.weights
+        elem = 2.0 * self.coef[:, None, None] * np.einsum("ha,hb->hab", w, w)  # (H, 4, 4)
+        blocks = np.einsum("hab,pq->hapbq", elem, np.eye(3)).reshape(-1, 12, 12)
+        scatter_blocks(blocks, pattern.slots(self.hinge), values)
+
+    def energy(self, x):
+        return quadratic_gradient(x, self.hinge, self.weights, self.coef, NO_GRADIENT)
+
+    def assemble(self, x, grad, values):
+        return quadratic_gradient(x, self.hinge, self.weights, self.coef, grad)
+
+
+class Stitch(Term):
+    """W = ½ Σ_s k_s ‖x_{a_s} − x_{b_s}‖² over the stitch pairs (a_s, b_s): a zero-length
+    spring per pair. ∇_a W = k_s (x_a − x_b) = −∇_b W; the Hessian k_s [[I, −I], [−I, I]] is
+    constant and PSD (eigenvalues 0 and 2k_s)."""
+
+    def __init__(self, pairs, stiffness):
+        self.elements = np.ascontiguousarray(pairs, dtype=np.int64)
+        self.stiffness = np.ascontiguousarray(stiffness, dtype=np.float64)
+
+    def constant(self, pattern, values):
+        k = self.stiffness[:, None, None] * np.array([[1.0, -1.0], [-1.0, 1.0]])  # (S, 2, 2)
+        blocks = np.einsum("sab,pq->sapbq", k, np.eye(3)).reshape(-1, 6, 6)
+        scatter_blocks(blocks, pattern.slots(self.elements), values)
+
+    def energy(self, x):
+        return stitch_energy(x, self.elements, self.stiffness, NO_GRADIENT)
+
+    def assemble(self, x, grad, values):
+        return stitch_energy(x, self.elements, self.stiffness, grad)
+
+    def gaps(self, x):
+        """(S,) ‖x_a − x_b‖ of every pair."""
+        d = x[self.elements[:, 0]] - x[self.elements[:, 1]]
+        return np.sqrt(np.einsum("sp,sp->s", d, d))
+
+
+@njit(cache=True)
+def stitch_energy(x, pairs, stiffness, grad):
+    """½ Σ k_s ‖x_a − x_b‖²; adds the gradient to grad unless grad is empty."""
+    total = 0.0
+    with_grad = grad.shape[0] > 0
+    for s in range(pairs.shape[0]):
+        a, b = pairs[s, 0], pairs[s, 1]
+        k = stiffness[s]
+        for p in range(3):
+            d = x[a, p] - x[b, p]
+            total += 0.5 * k * d * d
+            if with_grad:
+                grad[a, p] += k * d
+                grad[b, p] -= k * d
+    return total

@@ -1,0 +1,68 @@
+"""Small garments for the garment tests: flat panels written as an OBJ with ``g`` groups and
+per-corner ``vt`` (the pattern), positions laid out in 3D."""
+
+import numpy as np
+
+
+def panel(nx, ny, width, height):
+    """(uv (nx·ny, 2), faces) of a regular panel, vertex j·nx + i at (i, j) spacing,
+    counter-clockwise in uv."""
+    i, j = np.meshgrid(np.arange(nx), np.arange(ny))
+    uv = np.stack([i.ravel() * width / (nx - 1), j.ravel() * height / (ny - 1)], axis=1)
+    faces = []
+    for b in range(ny - 1):
+        for a in range(nx - 1):
+            v = b * nx + a
+            faces += [(v, v + 1, v + nx + 1), (v, v + nx + 1, v + nx)]
+    return uv, np.array(faces, np.int64)
+
+
+def write_obj(path, positions, groups):
+    """An OBJ of ``positions`` (N, 3) and ``groups``: [(name, faces (K, 3), corner uv (K, 3, 2))],
+    each group a ``g`` with its own ``vt`` per corner."""
+    lines = [f"v {float(x)!r} {float(y)!r} {float(z)!r}" for x, y, z in positions]
+    t = 0
+    for name, faces, corner in groups:
+        lines += [f"vt {float(u)!r} {float(v)!r}" for u, v in corner.reshape(-1, 2)]
+        lines.append(f"g {name}")
+        for k, f in enumerate(faces):
+            c = t + 3 * k + 1
+            lines.append(f"f {f[0] + 1}/{c} {f[1] + 1}/{c + 1} {f[2] + 1}/{c + 2}")
+        t += 3 * len(faces)
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def welded_pair(nx=5, ny=7, width=0.2, height=0.3, shift=(5.0, 2.0)):
+    """Two panels side by side in the xy plane sharing the seam column x = 0 (one vertex
+    each, welded), the right one's pattern shifted by ``shift`` in uv and turned a quarter:
+    (positions, left faces, right faces, left corner uv, right corner uv, seam vertices)."""
+    uv, faces = panel(nx, ny, width, height)
+    n = nx * ny
+    left = np.column_stack([uv[:, 0] - width, uv[:, 1], np.zeros(n)])
+    # the right panel: its first column is the left panel's last one
+    right_ids = np.arange(n).reshape(ny, nx)
+    right_ids = np.where(np.arange(nx)[None, :] == 0, (right_ids // nx) * nx + nx - 1,
+                         n + (right_ids // nx) * (nx - 1) + right_ids % nx - 1)
+    extra = uv.reshape(ny, nx, 2)[:, 1:].reshape(-1, 2)
+    positions = np.concatenate([left, np.column_stack([extra[:, 0], extra[:, 1],
+                                                       np.zeros(len(extra))])])
+    right_faces = right_ids.ravel()[faces]
+    turned = np.stack([-uv[:, 1], uv[:, 0]], axis=1) + np.asarray(shift)  # a quarter turn
+    return (positions, faces, right_faces, uv[faces], turned[faces],
+            right_ids[:, 0].copy())
+
+
+def apart_pair(nx=5, ny=7, width=0.2, height=0.3, gap=0.02):
+    """Two separate panels in the xy plane, ``gap`` apart along x: (positions, left faces,
+    right faces, left corner uv, right corner uv, a, b) with a the left panel's right edge
+    and b the right panel's left edge, both bottom to top (they run opposite ways around
+    their panels)."""
+    uv, faces = panel(nx, ny, width, height)
+    n = nx * ny
+    left = np.column_stack([uv[:, 0] - width - 0.5 * gap, uv[:, 1], np.zeros(n)])
+    right = np.column_stack([uv[:, 0] + 0.5 * gap, uv[:, 1], np.zeros(n)])
+    a = np.arange(ny) * nx + nx - 1
+    b = n + np.arange(ny) * nx
+    return (np.concatenate([left, right]), faces, faces + n, uv[faces], uv[faces] + [1.0, 0.0],
+            a, b)
