@@ -7,24 +7,30 @@ Writes ``sweep.csv`` and ``sweep.md``. The scene: a 16×16 sheet on two corners,
 frames at 30 fps (the default implicit solver); the runs differ in
 ``material.density`` only (0.200 … 0.210 kg/m²), so each costs about the same.
 
-- ``sweep``: ``clothtool sweep BASE -o DIR --grid material.density=… -j JOBS -q``, from the
-  process start to its end (Python start-up, worker start-up, every run, manifest).
-- ``one run``: the median of the runs' own times in that sweep (``seconds`` in the
-  manifest: simulation and status file, measured in the worker), so that it saw the same
-  load as the sweep; ``ideal`` = N/jobs × one run, and the ratio sweep / ideal is the
-  overhead: the start-up of the processes (each worker's first run also loads numba's
-  kernels: ``first run``), the parent's bookkeeping, and the uneven end (the last runs
-  leave cores idle).
-- ``warm run``: one run in a process that has already run one, measured alone before the
-  sweeps (the machine's speed at that moment, for reference).
-- ``process per run`` (12 runs only): the same runs as ``clothtool simulate`` commands,
-  JOBS at a time (what a shell loop or ``make -j`` gives), against the same ideal.
+"The time of one run" has two meanings, and both are measured:
 
-The machine is shared (2 cores): the load average is recorded beside the figures.
+- ``simulate``: what a user compares against: the wall time of one ``clothtool simulate
+  BASE -q --set material.density=…`` command, from the process start to its end (Python
+  start-up, imports, numba's kernels loaded from the cache, the simulation, the frames),
+  timed alone just before each sweep. ``user_ratio`` = sweep / (N/jobs × simulate).
+- ``one run``: the simulation alone: the median of the runs' own times in that sweep
+  (``seconds`` in the manifest: ``simulate()`` and the status file, measured in a worker
+  that has already run one), so that it saw the same load as the sweep. ``ratio`` = sweep /
+  (N/jobs × one run): everything the sweep adds to the simulations (the processes'
+  start-up and imports, each worker's first kernel loading, the parent's bookkeeping,
+  the uneven end when the last runs leave a core idle). The stricter of the two.
+
+Columns besides: ``first run`` (the slowest run: a worker's first, which loads the
+kernels), ``sweep`` (``clothtool sweep BASE -o DIR --grid material.density=… -j JOBS -q``
+end to end), ``sweep_cpu_s`` (CPU of the sweep's whole process tree), ``process per run``
+(12 runs only: the same runs as ``clothtool simulate`` commands, JOBS at a time, what a
+shell loop or ``make -j`` gives, against the same ``one run``), and the load average.
+The machine is shared (2 cores).
 """
 
 import csv
 import os
+import resource
 import statistics
 import subprocess
 import sys
@@ -44,10 +50,25 @@ time: {fps: 30, frames: 40}
 COUNTS = (12, 24, 48)
 JOBS = (1, 2)
 PER_RUN_COUNT = 12
+ENV = {**os.environ, "NUMBA_NUM_THREADS": "1"}  # as in a pool worker
 
 
 def densities(n):
     return [round(0.2 + 0.01 * i / max(n - 1, 1), 6) for i in range(n)]
+
+
+def children_cpu():
+    usage = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return usage.ru_utime + usage.ru_stime
+
+
+def simulate_alone(base, value, out):
+    """Wall time of one ``clothtool simulate`` command, as a user times it."""
+    started = time.perf_counter()
+    subprocess.run(clothtool_cmd("simulate", base, "-o", out, "-q", "--set",
+                                 f"material.density={value}"), check=True,
+                   stdout=subprocess.DEVNULL, env=ENV)
+    return time.perf_counter() - started
 
 
 def warm_times(base, values, out):
@@ -61,19 +82,17 @@ def warm_times(base, values, out):
         "    clothtool.simulate(base, output_dir=out, progress=False,\n"
         "                       overrides={'material.density': float(v)})\n"
         "    print(time.perf_counter() - t)\n")
-    env = {**os.environ, "NUMBA_NUM_THREADS": "1"}  # as in a pool worker
     done = subprocess.run([sys.executable, "-c", code, str(base), str(out), *map(str, values)],
-                          check=True, capture_output=True, text=True, env=env)
+                          check=True, capture_output=True, text=True, env=ENV)
     return [float(line) for line in done.stdout.split()]
 
 
 def process_per_run(base, values, jobs, out):
-    env = {**os.environ, "NUMBA_NUM_THREADS": "1"}
     cmds = [clothtool_cmd("simulate", base, "-o", out / f"r{i}", "-q", "--set",
                           f"material.density={v}") for i, v in enumerate(values)]
     started = time.perf_counter()
     with ThreadPoolExecutor(jobs) as pool:
-        list(pool.map(lambda c: subprocess.run(c, check=True, stdout=subprocess.DEVNULL, env=env),
+        list(pool.map(lambda c: subprocess.run(c, check=True, stdout=subprocess.DEVNULL, env=ENV),
                       cmds))
     return time.perf_counter() - started
 
@@ -89,26 +108,31 @@ def run(out_dir):
         for n in COUNTS:
             values = densities(n)
             for jobs in JOBS:
+                alone = simulate_alone(base, values[0], tmp / "alone")
                 grid = "material.density=" + ",".join(map(str, values))
                 load = os.getloadavg()[0]
                 folder = tmp / f"s{n}-{jobs}"
+                cpu = children_cpu()
                 started = time.perf_counter()
                 subprocess.run(clothtool_cmd("sweep", base, "-o", folder, "--grid", grid, "-j", jobs,
                                              "-q"), check=True, stdout=subprocess.DEVNULL)
                 wall = time.perf_counter() - started
+                cpu = children_cpu() - cpu
                 with open(folder / "manifest.csv", newline="") as fh:
                     seconds = [float(r["seconds"]) for r in csv.DictReader(fh)]
                 one = statistics.median(seconds)
                 ideal = n * one / jobs
-                row = {"runs": n, "jobs": jobs, "warm_run_s": warm, "one_run_s": one,
+                row = {"runs": n, "jobs": jobs, "simulate_s": alone, "one_run_s": one,
                        "first_run_s": max(seconds), "ideal_s": ideal, "sweep_s": wall,
-                       "sweep_ratio": wall / ideal, "load": load}
+                       "ratio": wall / ideal, "user_ratio": wall / (n * alone / jobs),
+                       "sweep_cpu_s": cpu, "load": load}
                 if n == PER_RUN_COUNT:
                     per_run = process_per_run(base, values, jobs, tmp / f"p{n}-{jobs}")
                     row.update(process_per_run_s=per_run, process_per_run_ratio=per_run / ideal)
                 rows.append(row)
                 print(f"  {n} runs, -j {jobs}: sweep {wall:.1f} s = {wall / ideal:.2f}× ideal "
-                      f"{ideal:.1f} s (one run {one:.2f} s, first {max(seconds):.2f} s)"
+                      f"{ideal:.1f} s (one run {one:.2f} s, first {max(seconds):.2f} s); "
+                      f"{row['user_ratio']:.2f}× runs/jobs × simulate alone ({alone:.2f} s)"
                       + (f"; process per run {row['process_per_run_s']:.1f} s "
                          f"({row['process_per_run_ratio']:.2f}×)" if n == PER_RUN_COUNT else "")
                       + f"; load {load:.1f}", flush=True)
@@ -116,8 +140,10 @@ def run(out_dir):
     write_csv(out_dir / "sweep.csv", rows, columns)
     (out_dir / "sweep.md").write_text(
         "## Sweep overhead (`python -m benchmarks sweep`)\n\n"
-        "16×16 sheet, 40 frames per run. one run = median of the runs' own times in the sweep; "
-        "ideal = runs / jobs × one run; sweep = `clothtool sweep -j JOBS` end to end; "
-        "first run = the slowest run (a worker's first: numba's kernels loaded); process per "
-        f"run = one `clothtool simulate` per run, JOBS at a time. Warm run alone: {warm:.2f} s.\n\n"
-        + markdown_table(rows, columns))
+        "16×16 sheet, 40 frames per run. simulate = one `clothtool simulate` command alone, "
+        "end to end (what a user times); one run = the median of the runs' own simulation times "
+        "in the sweep (a warm worker); ideal = runs / jobs × one run; ratio = sweep / ideal; "
+        "user_ratio = sweep / (runs / jobs × simulate); sweep = `clothtool sweep -j JOBS` end to "
+        "end; first run = the slowest run (a worker's first: numba's kernels loaded); process "
+        f"per run = one `clothtool simulate` per run, JOBS at a time. Warm run alone: {warm:.2f} s."
+        "\n\n" + markdown_table(rows, columns))

@@ -379,7 +379,7 @@ def simulate(config, output, settings, quiet):
 
 OPTIONS.update({"grid": "--grid", "zip": "--zip", "random": "--random", "ranges": "--range",
                 "seed": "--seed", "jobs": "--jobs", "per_task": "--per-task", "plot": "--plot",
-                "against": "--against"})
+                "against": "--against", "settings": "--set"})
 
 SWEEP_EPILOG = """\b
 Examples:

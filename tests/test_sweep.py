@@ -165,6 +165,60 @@ def test_a_combination_that_is_invalid_names_the_run(tmp_path):
     assert not (tmp_path / "runs").exists()
 
 
+@pytest.mark.parametrize("kwargs, message", [
+    (dict(grid=["material.stretch=[1,"]), "grid=material.stretch=[1,: value '[1,' is"),
+    (dict(grid=["material.strech=1e3"]), "grid=material.strech=1000.0: unknown key"),
+    (dict(random=2, seed=0, ranges=["material.stretch=x:2"]),
+     "ranges=material.stretch=x:2: lo and hi must be numbers"),
+    (dict(random=2, ranges=["material.stretch=1:2"]), "random=2: a random sweep needs a seed, "
+     "so that it can be resumed and repeated: give seed=0"),
+    (dict(zip=["material.stretch=1,2"], random=2, seed=0, ranges=["material.stretch=1:2"]),
+     "ranges=material.stretch: material.stretch is swept twice (in more than one of grid, zip "
+     "and ranges)"),
+    (dict(settings=["material.strech=1"]), "settings=material.strech=1: unknown key"),
+    (dict(settings=["time.frames=2", "material.stretch=-1"]),
+     "settings=material.stretch=-1: material.stretch must be ≥ 0"),
+    (dict(settings=["nokey"]), "settings='nokey': expected dotted.key=value"),
+    (dict(analyze=True, fields="strech"), "fields=strech: unknown field 'strech'; choose from"),
+    (dict(jobs=0), "jobs=0: must be a positive integer"),
+])
+def test_library_errors_name_its_keywords(tmp_path, kwargs, message):
+    """clothtool.sweep's errors name its keyword arguments, never the command line's options
+    (which the CLI substitutes: --set for settings=)."""
+    from clothtool.cli import OPTIONS
+
+    base = write_base(tmp_path)
+    with pytest.raises(InputError) as caught:
+        clothtool.sweep(base, tmp_path / "runs", **kwargs)
+    assert str(caught.value).startswith(message) and "--" not in str(caught.value)
+    assert caught.value.format(OPTIONS).startswith(f"{OPTIONS[caught.value.keyword]} ")
+    assert not (tmp_path / "runs").exists()
+
+
+def test_pins_that_do_not_fit_the_mesh_fail_before_any_run(tmp_path):
+    """A named pin set on a PLY mesh, or a vertex index past its end, is refused while the
+    sweep is checked: one line, nothing written (as simulate would refuse each run)."""
+    from conftest import grid
+
+    x, faces = grid(5, 5, 0.4, 0.4)
+    clothtool.write_ply(tmp_path / "rest.ply", x, faces)
+    ply_base = BASE.replace("mesh: {grid: {nx: 6, ny: 6, width: 0.5, height: 0.5, plane: xy}}",
+                            "mesh: {ply: rest.ply}")
+    base = write_base(tmp_path, ply_base)
+    indexed = write_base(tmp_path, ply_base.replace("[top_corners]", "[20, 24]"), "indexed.yaml")
+    for base, args, message in (
+            (base, ["--grid", "material.stretch=1e3,1e4"],
+             f"clothtool: error: {base}: scene.pins[0]: pin set 'top_corners' needs a grid mesh"),
+            (indexed, ["--grid", "scene.pins=[20, 24],[20, 25]", "-j", "2"],
+             "clothtool: error: --grid scene.pins=[20, 25]: scene.pins[1]: vertex index 25 out of "
+             "range (the mesh has 25 vertices)")):
+        result = CliRunner().invoke(main, ["sweep", str(base), "-o", str(tmp_path / "runs"), *args])
+        assert result.exit_code == 2, result.output
+        assert result.output.startswith(message) and result.output.count("\n") == 1, result.output
+        assert not (tmp_path / "runs").exists()
+    assert not _pool_processes(os.getpid())  # the -j 2 pool, started before the check, is gone
+
+
 def test_a_folder_with_a_different_sweep_is_refused_untouched(tmp_path):
     base = write_base(tmp_path)
     runs = tmp_path / "runs"
@@ -377,6 +431,65 @@ def _open_files(pid):
         return [os.path.realpath(f"/proc/{pid}/fd/{fd}") for fd in os.listdir(f"/proc/{pid}/fd")]
     except OSError:
         return []
+
+
+def _pool_processes(pid):
+    """The sweep pool processes below ``pid`` (not their workers, forks with the same command
+    line)."""
+    found = {}
+    for child in _descendants(pid):
+        try:
+            cmdline = Path(f"/proc/{child}/cmdline").read_bytes()
+            parent = int(Path(f"/proc/{child}/stat").read_text().rsplit(")", 1)[1].split()[1])
+        except OSError:
+            continue
+        if b"clothtool.sweeps.pool import serve" in cmdline:
+            found[child] = parent
+    return [child for child, parent in found.items() if parent not in found]
+
+
+def _group_alive(pgid):
+    try:
+        os.killpg(pgid, 0)
+    except ProcessLookupError:
+        return False
+    return True
+
+
+@pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="needs Linux /proc")
+def test_a_pool_process_that_dies_stops_its_workers_and_the_rerun_resumes(tmp_path):
+    """SIGKILL to the pool process in the middle of the runs: its workers are stopped (their
+    runs left not done, no temporary file), the sweep says so in one line (exit code 1), and
+    running it again completes every run."""
+    base = write_base(tmp_path, BASE.replace("frames: 6", "frames: 200"))
+    runs = tmp_path / "runs"
+    args = [*CLOTHTOOL, "sweep", str(base), "-o", str(runs), "-j", "2",
+            "--grid", "material.stretch=1e3,2e3,3e3,4e3"]
+    proc = subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    try:
+        deadline = time.monotonic() + 300
+        while not list(runs.glob("run_0000/frame_00010.ply")):
+            assert proc.poll() is None, proc.communicate()
+            assert time.monotonic() < deadline
+            time.sleep(0.01)
+        pool, = _pool_processes(proc.pid)
+        os.kill(pool, signal.SIGKILL)
+        stdout, stderr = proc.communicate(timeout=120)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    assert proc.returncode == 1, stderr
+    assert stderr.decode() == (
+        "clothtool: error: the process that runs the sweep's workers died (killed by signal "
+        "SIGKILL); the runs it had not finished are not done: run the sweep again to resume\n")
+    assert not _group_alive(pool)  # its workers are gone too
+    assert not [p for p in runs.rglob("*") if ".tmp-" in p.name]
+    for status in runs.glob("run_*/status.json"):  # the stopped runs have none
+        assert json.loads(status.read_text())["status"] == "done"
+    again = cli(*args[3:])
+    assert again.returncode == 0, again.stderr
+    assert all(r["status"] == "done" for r in read_csv(runs / "manifest.csv"))
 
 
 @pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="needs Linux /proc")

@@ -76,42 +76,59 @@ def sweep(base, output_dir, *, grid=None, zip=None, random=None, ranges=None, se
         try:
             names = parse_fields(fields)
         except InputError as exc:
-            raise InputError(exc.format(), keyword="fields", value=fields) from None
+            raise InputError(exc.detail, keyword="fields", value=fields,
+                             mentions=exc.mentions) from None
         analysis = {"reference": "uv", "fields": ",".join(names)}
-    record, configs = plan(base, grid=grid, zipped=zip, random=random, ranges=ranges, seed=seed,
-                           settings=settings, analysis=analysis)
-    folder = SweepFolder(output_dir)
-    folder.check_new_or_same(record)
+    # the pool process starts now, so that its imports overlap the checks and the writing
+    pool = None
+    if jobs > 1 and not slurm:
+        from clothtool.sweeps.pool import Pool
 
-    folder.write_record(record)
-    for run in record["runs"]:
-        folder.write_run_config(run["run"], configs[run["run"]])
-    statuses = folder.statuses(record)
-    folder.write_manifest(record, statuses)
-    todo = [r for r, st in statuses.items() if st is None
-            or (retry_failed and st.get("status") == "failed")]
-    result = SweepResult(folder.root, len(statuses), 0, 0)
+        pool = Pool(output_dir, analysis, jobs)
+    try:
+        record, configs, methods = plan(base, grid=grid, zipped=zip, random=random,
+                                        ranges=ranges, seed=seed, settings=settings,
+                                        analysis=analysis)
+        folder = SweepFolder(output_dir)
+        folder.check_new_or_same(record)
 
-    if slurm:
-        from clothtool.sweeps.slurm import write_script
-
-        _count(result, statuses, todo)
-        result.todo = len(todo)
-        if todo:
-            result.script, result.tasks = write_script(folder.root, todo, per_task)
-            result.sbatch = f"sbatch {shlex.quote(str(result.script))}"
-        return result
-
-    from clothtool.sweeps.pool import run_pool
-
-    def done(run, status):
-        statuses[run] = status
+        folder.write_record(record)
+        for run in record["runs"]:
+            folder.write_run_config(run["run"], configs[run["run"]])
+        statuses = folder.statuses(record)
         folder.write_manifest(record, statuses)
-        result.ran += 1
-        if on_done is not None:
-            on_done(run, status)
+        todo = [r for r, st in statuses.items() if st is None
+                or (retry_failed and st.get("status") == "failed")]
+        result = SweepResult(folder.root, len(statuses), 0, 0)
 
-    run_pool(folder.root, todo, analysis, jobs, done)
+        if slurm:
+            from clothtool.sweeps.slurm import write_script
+
+            _count(result, statuses, todo)
+            result.todo = len(todo)
+            if todo:
+                result.script, result.tasks = write_script(folder.root, todo, per_task)
+                result.sbatch = f"sbatch {shlex.quote(str(result.script))}"
+            return result
+
+        def done(run, status):
+            statuses[run] = status
+            folder.write_manifest(record, statuses)
+            result.ran += 1
+            if on_done is not None:
+                on_done(run, status)
+
+        if pool is not None:
+            if todo:
+                pool.run(todo, methods, done)
+        else:
+            from clothtool.sweeps.run import run_one
+
+            for run in todo:
+                done(run, run_one(folder.root, run, analysis))
+    finally:
+        if pool is not None:
+            pool.close()
     _count(result, statuses, [])
     result.seconds = time.perf_counter() - started
     return result
@@ -125,37 +142,44 @@ def _count(result, statuses, todo):
 
 def plan(base, *, grid=None, zipped=None, random=None, ranges=None, seed=None, settings=None,
          analysis=None):
-    """The sweep's record (what ``sweep.json`` holds) and each run's resolved config,
-    every config checked. Nothing is written."""
+    """The sweep's record (what ``sweep.json`` holds), each run's resolved config, and the
+    ``solver.method`` names the runs use; every config checked, its pins against its mesh
+    as well (what the run would refuse when it builds its model). Nothing is written."""
     from clothtool.config_tools import apply_overrides, assign
     from clothtool.sim.config import load_config, read_yaml
 
     base = Path(base)
-    raw = read_yaml(base)
-    if settings:
-        raw = apply_overrides(raw, list(settings))
+    base_dir = base.parent.resolve()
+    meshes = {}  # mesh file → its vertex count
+    loaded = read_yaml(base)
+    raw = _with_settings(loaded, settings, apply_overrides)
     rows = spec.expand(grid, zipped, random, ranges, seed)
     origin = {**{k: "grid" for k in spec.parse_lists(grid, "grid")},
               **{k: "zip" for k in spec.parse_lists(zipped, "zip")},
               **{k: "ranges" for k in spec.parse_ranges(ranges)}}
     ids = run_ids(len(rows))
 
-    def load(params, where, keyword=None):
-        """(raw, Config) of the base with ``params``; an error starts with ``where`` (or is
+    def load(params, where, keyword=None, start=raw):
+        """(raw, Config) of ``start`` with ``params``; an error starts with ``where`` (or is
         about ``keyword``, with ``where`` as its value)."""
-        config = copy.deepcopy(raw)
+        config = copy.deepcopy(start)
         try:
             for key, value in params.items():
                 assign(config, key.split("."), value, key)
-            return config, load_config(config, base_dir=base.parent.resolve())
+            checked = load_config(config, base_dir=base_dir)
+            _check_pins(checked, meshes)
+            return config, checked
         except InputError as exc:
             detail = exc.format().removeprefix("config: ")
             if keyword is None:
                 raise InputError(f"{where}: {detail}") from None
             raise InputError(detail, keyword=keyword, value=where) from None
 
-    load({}, str(base))  # the base itself
-    # each swept value alone (a range: its ends), so that an error names the option and key
+    load({}, str(base), start=loaded)  # the base itself
+    for i in range(len(settings or ())):  # then each setting on it, so that an error names it
+        load({}, settings[i], "settings", start=_with_settings(loaded, settings[:i + 1],
+                                                                apply_overrides))
+    # each swept value alone (a range: its ends), so that an error names the keyword and key
     for key, kind in origin.items():
         if kind == "ranges":
             lo, hi, scale = spec.parse_ranges(ranges)[key]
@@ -164,10 +188,11 @@ def plan(base, *, grid=None, zipped=None, random=None, ranges=None, seed=None, s
             values = spec.parse_lists(grid if kind == "grid" else zipped, kind)[key]
         for value in values:
             load({key: value}, f"{key}={format_value(value)}", kind)
-    configs = {}
+    configs, methods = {}, set()
     for run, params in zip(ids, rows):
         shown = ", ".join(f"{k}={format_value(v)}" for k, v in params.items())
         config, checked = load(params, f"{run} ({shown})")
+        methods.add(checked.solver.method)
         resolved = _with_resolved_paths(config, checked)
         if not isinstance(resolved.get("output"), dict):
             resolved["output"] = {}
@@ -180,7 +205,38 @@ def plan(base, *, grid=None, zipped=None, random=None, ranges=None, seed=None, s
         record = json.loads(json.dumps(record))
     except (TypeError, ValueError) as exc:
         raise InputError(f"{base}: a value cannot be recorded: {exc}") from None
-    return record, configs
+    return record, configs, methods
+
+
+def _with_settings(raw, settings, apply_overrides):
+    """The base config ``raw`` with the ``settings`` (``key=value`` strings) applied; an
+    error names the keyword ``settings``."""
+    if not settings:
+        return raw
+    try:
+        return apply_overrides(raw, list(settings))
+    except InputError as exc:
+        raise InputError(exc.detail, keyword="settings", value=exc.value,
+                         mentions=exc.mentions) from None
+
+
+def _check_pins(config, meshes):
+    """The pins of a loaded config resolve on its mesh (named sets need a grid, indices must
+    exist), as :func:`clothtool.sim.model.build_model` checks them; ``meshes`` caches the
+    vertex count of each mesh file."""
+    from clothtool.sim.motion import resolve_pin_entries
+
+    grid = config.mesh.grid
+    if grid is not None:
+        count, shape = grid.nx * grid.ny, (grid.nx, grid.ny)
+    else:
+        path = config.mesh.ply
+        if path not in meshes:
+            from clothtool.io.ply import read_ply
+
+            meshes[path] = len(read_ply(path).vertices)
+        count, shape = meshes[path], None
+    resolve_pin_entries(config.scene.pins, count, shape)
 
 
 def _with_resolved_paths(raw, config):

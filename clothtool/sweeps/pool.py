@@ -1,55 +1,186 @@
-"""Runs on this machine: ``jobs`` worker processes, each importing clothtool (numpy,
-numba and the compiled-kernel cache) once and then running one run after another as
-the parent hands them out, so a run costs its simulation and not a Python start-up.
+"""Runs on this machine: one pool process that imports clothtool, numpy, numba and the
+simulator once, and ``jobs`` workers forked from it, each running one run after another
+as the pool hands them out, so a run costs its simulation and not a Python start-up.
 
-Only the parent writes the manifest; a worker writes its runs' ``status.json``. A
-worker that dies (killed, out of memory) fails its run with a message naming the
-signal or exit code, and another worker takes its place. Ctrl-C or SIGTERM to the
-parent stops the workers with SIGTERM (each run then cleans up as ``clothtool
-simulate`` does and is left not done) before the parent re-raises.
+    the caller (writes the manifest) ── socket ── pool process (fresh interpreter, own session)
+                                                   ├── worker (fork): run, run, …
+                                                   └── worker (fork): run, run, …
+
+The caller starts the pool process before it expands the sweep (:class:`Pool`), so the
+imports (about 1 s of CPU on the benchmark machine: numba, scipy, the simulator's modules)
+run while the runs' configs are checked and the folder is written, and run once for all
+workers: a worker is a copy-on-write fork of a process that has imported them and has
+started no thread (numba's threads start with its first parallel kernel, in the workers).
+Each worker still loads from numba's on-disk cache the compiled kernels its first run calls.
+
+Only the caller writes the manifest; a worker writes its runs' ``status.json``. A worker
+that dies (killed, out of memory) fails its run with a message naming the signal or exit
+code, and the pool forks another. Ctrl-C or SIGTERM to the caller: it SIGTERMs the pool
+process, which SIGTERMs its workers (each run then cleans up as ``clothtool simulate``
+does and is left not done) and exits, and the caller re-raises. The pool has its own
+session, so a terminal's Ctrl-C reaches the caller alone and the stop always goes down
+the tree in that order. If the pool process itself dies, the caller stops its workers
+(the pool's process group) and raises :class:`PoolError`: the runs not finished are not
+done, and running the sweep again resumes them. POSIX only (fork, sessions).
 """
 
 import contextlib
+import importlib
 import multiprocessing
 import os
 import signal
+import socket
+import subprocess
+import sys
 import threading
-from multiprocessing.connection import wait
+import time
+from multiprocessing.connection import Connection, wait
+from pathlib import Path
 
 from clothtool import interrupt
+from clothtool.errors import ClothtoolError, InputError
+
+# what every run imports (clothtool.sim.api imports the others when a run starts)
+PRELOAD = ("tqdm", "clothtool.sweeps.run", "clothtool.sim.api", "clothtool.sim.integrator",
+           "clothtool.sim.methods", "clothtool.sim.model", "clothtool.sim.output")
+ANALYSIS_PRELOAD = ("clothtool.analysis.sequence",)
+STOP_WAIT_S = 10.0  # how long a stopped process may take to clean up before SIGKILL
 
 
-def _worker(conn, root, analysis, threads):
-    """A pool worker's main loop: receive a run id, run it, send back (run, status)."""
-    if threads is not None:  # before numba is imported
-        os.environ["NUMBA_NUM_THREADS"] = threads
+class PoolError(ClothtoolError):
+    """The pool process died; the runs it had not finished are left not done."""
+
+
+def available():
+    """Can this platform run the pool (fork and sessions)?"""
+    return hasattr(os, "fork") and hasattr(os, "killpg")
+
+
+class Pool:
+    """The caller's side of the pool: starts the pool process at once (it imports while the
+    caller plans); :meth:`run` hands it the runs, :meth:`close` stops it."""
+
+    def __init__(self, root, analysis, jobs):
+        if not available():
+            raise InputError("runs at a time on this machine need a POSIX system (fork); "
+                             "give 1, or run the sweep on Slurm", keyword="jobs", value=jobs)
+        package_dir = str(Path(__file__).resolve().parents[2])  # this clothtool, not another
+        code = (f"import sys; sys.path.insert(0, {package_dir!r}); "
+                "from clothtool.sweeps.pool import serve; serve(int(sys.argv[1])); "
+                "import os; os._exit(0)")  # nothing left to flush: skip the interpreter's teardown
+        env = dict(os.environ)
+        # one numba thread per worker: the workers already fill the cores (unless the user chose)
+        env.setdefault("NUMBA_NUM_THREADS", "1")
+        ours, theirs = socket.socketpair()
+        with ours, theirs:
+            self.process = subprocess.Popen(
+                [sys.executable, "-c", code, str(theirs.fileno())], pass_fds=[theirs.fileno()],
+                stdin=subprocess.DEVNULL, env=env, start_new_session=True)
+            self.conn = Connection(ours.detach())
+        self.conn.send((str(root), analysis, jobs))
+        self.started = False  # runs handed to it
+
+    def run(self, runs, methods, on_done):
+        """Run ``runs`` (ids); ``methods``: the ``solver.method`` names they use (their modules
+        are imported before the workers fork). ``on_done(run, status)`` as each run ends."""
+        self.started = True
+        self.conn.send((list(runs), sorted(methods)))
+        while True:
+            try:
+                message = self.conn.recv()
+            except (EOFError, OSError):
+                raise self._died() from None
+            if message is None:
+                break
+            on_done(*message)
+        self.process.wait()
+
+    def close(self):
+        """Stop the pool process and its workers if they still run (and wait for them)."""
+        if self.process.poll() is None:
+            with interrupt.deferred():
+                # before any run it has no worker and has written nothing
+                self.process.send_signal(signal.SIGTERM if self.started else signal.SIGKILL)
+            try:
+                self.process.wait(timeout=2 * STOP_WAIT_S)
+            except subprocess.TimeoutExpired:
+                self.process.kill()
+                self.process.wait()
+        self._stop_group()
+        self.conn.close()
+
+    def _died(self):
+        code = self.process.wait()
+        self._stop_group()
+        return PoolError(f"the process that runs the sweep's workers died ({_how(code)}); the "
+                         "runs it had not finished are not done: run the sweep again to resume")
+
+    def _stop_group(self):
+        """SIGTERM what is left of the pool's process group (workers whose pool died), wait
+        for it to end; SIGKILL what lingers."""
+        group = self.process.pid
+        for signum in (signal.SIGTERM, signal.SIGKILL):
+            try:
+                os.killpg(group, signum)
+            except (ProcessLookupError, PermissionError):
+                return
+            deadline = time.monotonic() + STOP_WAIT_S
+            while time.monotonic() < deadline:
+                try:
+                    os.killpg(group, 0)
+                except (ProcessLookupError, PermissionError):
+                    return
+                time.sleep(0.02)
+
+
+# ---------------------------------------------------------------------- the pool process
+
+
+def serve(fd):
+    """The pool process's main: import what the runs need, receive the runs, fork the
+    workers and hand the runs out, sending each run's status to the caller."""
+    caller = Connection(fd)
+    _stop_on_first_signal()
+    workers = []
     try:
-        interrupt.install()
-        for signum in (signal.SIGINT, signal.SIGTERM):
-            handler = signal.getsignal(signum)
-            if callable(handler):
-                signal.signal(signum, _once(handler))
+        root, analysis, jobs = caller.recv()
+        for name in PRELOAD + (ANALYSIS_PRELOAD if analysis is not None else ()):
+            importlib.import_module(name)
         from tqdm import tqdm
 
         # tqdm's default lock is a multiprocessing semaphore (made even for a disabled bar):
         # a worker stopped by a signal would leak it, and the resource tracker would say so
         tqdm.set_lock(threading.RLock())
-        from clothtool.sweeps.run import run_one
+        message = caller.recv()
+        if message is None:
+            return
+        runs, methods = message
+        from clothtool.sim.methods import METHODS
 
-        while True:
-            run = conn.recv()
-            if run is None:
-                return
-            conn.send((run, run_one(root, run, analysis)))
-    except (KeyboardInterrupt, EOFError, BrokenPipeError):
-        return  # the parent is stopping the sweep; nothing of this run was published
+        for name in methods:
+            METHODS[name].load()
+        _hand_out_runs(caller, root, analysis, jobs, runs, workers)
+        caller.send(None)
+    except (KeyboardInterrupt, EOFError, OSError):
+        pass  # stopped by the caller, or the caller is gone
+    finally:
+        _stop(workers)
+
+
+def _stop_on_first_signal():
+    """SIGINT and SIGTERM raise KeyboardInterrupt (:func:`clothtool.interrupt.install`) the
+    first time, then both are ignored: the pool's stop (and a worker's clean-up) must not
+    be interrupted by a second signal. (Ignored by a Python function: with SIG_IGN, a
+    signal already pending is reported as "ignored due to race condition".) The workers
+    inherit these handlers with the fork."""
+    interrupt.install()
+    for signum in (signal.SIGINT, signal.SIGTERM):
+        handler = signal.getsignal(signum)
+        if callable(handler):
+            signal.signal(signum, _once(handler))
 
 
 def _once(handler):
-    """``handler`` for the first SIGINT or SIGTERM, then both ignored: Ctrl-C reaches the
-    workers and the parent's SIGTERM follows it, and the second must not interrupt the
-    first one's clean-up. (Ignored by a Python function: with SIG_IGN, a signal already
-    pending is reported as "ignored due to race condition".)"""
     def first(signum, frame):
         signal.signal(signal.SIGINT, _ignore)
         signal.signal(signal.SIGTERM, _ignore)
@@ -61,75 +192,69 @@ def _ignore(signum, frame):
     pass
 
 
-def _context():
-    """Workers start from a fresh interpreter (forkserver; spawn where there is none), not
-    as forks of the caller: a notebook that already ran numba's thread pool cannot fork
-    safely."""
-    methods = multiprocessing.get_all_start_methods()
-    return multiprocessing.get_context("forkserver" if "forkserver" in methods else "spawn")
+def _worker(conn, caller, root, analysis):
+    """A worker's main loop: receive a run id, run it, send back (run, status)."""
+    caller.close()  # the pool's connection to the caller: only the pool holds it
+    try:
+        from clothtool.sweeps.run import run_one
+
+        while True:
+            run = conn.recv()
+            if run is None:
+                return
+            conn.send((run, run_one(root, run, analysis)))
+    except (KeyboardInterrupt, EOFError, BrokenPipeError):
+        return  # the pool is stopping; nothing of this run was published
 
 
 class _Worker:
-    def __init__(self, ctx, root, analysis, threads):
+    def __init__(self, caller, root, analysis):
+        ctx = multiprocessing.get_context("fork")
         self.conn, child = ctx.Pipe()
-        self.process = ctx.Process(target=_worker, args=(child, root, analysis, threads),
+        self.process = ctx.Process(target=_worker, args=(child, caller, root, analysis),
                                    daemon=True)
         self.process.start()
         child.close()
         self.run = None  # the run it is busy with
 
 
-def run_pool(root, runs, analysis, jobs, on_done):
-    """Run ``runs`` (ids) of the sweep in ``root`` on ``jobs`` processes; ``on_done(run,
-    status)`` is called in the parent as each ends. One job runs in this process."""
-    if jobs <= 1:
-        from clothtool.sweeps.run import run_one
-
-        for run in runs:
-            on_done(run, run_one(root, run, analysis))
-        return
-    ctx = _context()
+def _hand_out_runs(caller, root, analysis, jobs, runs, workers):
     pending = list(reversed(runs))
-    workers = []
-    # one numba thread per worker: the workers already fill the cores (unless the user chose)
-    threads = None if "NUMBA_NUM_THREADS" in os.environ else "1"
-    try:
-        for _ in range(min(jobs, len(runs))):
-            workers.append(_Worker(ctx, root, analysis, threads))
-        for w in workers:
-            _hand_out(w, pending)
-        while any(w.run is not None for w in workers):
-            busy = [w for w in workers if w.run is not None]
-            ready = wait([w.conn for w in busy] + [w.process.sentinel for w in busy])
-            for w in busy:
-                if w.conn not in ready and w.process.sentinel not in ready:
-                    continue
-                try:
-                    message = w.conn.recv() if w.conn.poll() else None
-                except (EOFError, OSError):  # it died while we looked
-                    message = None
-                if message is not None:
-                    run, status = message
-                    w.run = None
-                    on_done(run, status)
-                    _hand_out(w, pending)
-                elif not w.process.is_alive():
-                    run, w.run = w.run, None
-                    w.process.join()
-                    on_done(run, _died(root, run, w.process.exitcode))
-                    workers.remove(w)
-                    if pending:
-                        fresh = _Worker(ctx, root, analysis, threads)
-                        workers.append(fresh)
-                        _hand_out(fresh, pending)
-        for w in workers:
-            with contextlib.suppress(OSError):
-                w.conn.send(None)
-        for w in workers:
-            w.process.join()
-    except BaseException:
-        _stop(workers)
-        raise
+    for _ in range(min(jobs, len(runs))):
+        workers.append(_Worker(caller, root, analysis))
+    for w in workers:
+        _hand_out(w, pending)
+    while any(w.run is not None for w in workers):
+        busy = [w for w in workers if w.run is not None]
+        ready = wait([caller] + [w.conn for w in busy] + [w.process.sentinel for w in busy])
+        if caller in ready:
+            caller.recv()  # the caller sends nothing while runs run: it is gone (EOFError)
+        for w in busy:
+            if w.conn not in ready and w.process.sentinel not in ready:
+                continue
+            try:
+                message = w.conn.recv() if w.conn.poll() else None
+            except (EOFError, OSError):  # it died while we looked
+                message = None
+            if message is not None:
+                w.run = None
+                caller.send(message)
+                _hand_out(w, pending)
+            elif not w.process.is_alive():
+                run, w.run = w.run, None
+                w.process.join()
+                caller.send((run, _died(root, run, w.process.exitcode)))
+                workers.remove(w)
+                if pending:
+                    fresh = _Worker(caller, root, analysis)
+                    workers.append(fresh)
+                    _hand_out(fresh, pending)
+    for w in workers:
+        with contextlib.suppress(OSError):
+            w.conn.send(None)
+    for w in workers:
+        w.process.join()
+    workers.clear()
 
 
 def _hand_out(worker, pending):
@@ -139,13 +264,16 @@ def _hand_out(worker, pending):
             worker.conn.send(worker.run)
 
 
+def _how(exitcode):
+    return (f"killed by signal {signal.Signals(-exitcode).name}" if exitcode is not None
+            and exitcode < 0 else f"exit code {exitcode}")
+
+
 def _died(root, run, exitcode):
     from clothtool.sweeps.layout import SweepFolder
 
-    how = (f"killed by signal {signal.Signals(-exitcode).name}" if exitcode is not None
-           and exitcode < 0 else f"exit code {exitcode}")
     status = {"status": "failed", "exit_code": 1,
-              "error": f"the worker process running this run died ({how})"}
+              "error": f"the worker process running this run died ({_how(exitcode)})"}
     SweepFolder(root).write_status(run, status)
     return status
 
@@ -156,8 +284,8 @@ def _stop(workers):
         for w in workers:
             if w.process.is_alive():
                 w.process.terminate()
-        for w in workers:
-            w.process.join(timeout=10)
-            if w.process.is_alive():
-                w.process.kill()
-                w.process.join()
+    for w in workers:
+        w.process.join(timeout=STOP_WAIT_S)
+        if w.process.is_alive():
+            w.process.kill()
+            w.process.join()

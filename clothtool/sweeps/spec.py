@@ -60,7 +60,7 @@ def parse_lists(spec, keyword):
             values = split_values(rest)
             if any(not v for v in values):
                 raise InputError("an empty value in the list", keyword=keyword, value=text)
-            items.append((key, [parse_value(v, f"{keyword} {text}") for v in values]))
+            items.append((key, [parse_value(v, keyword=keyword, value=text) for v in values]))
     out = {}
     for key, values in items:
         if key in out:
@@ -94,7 +94,8 @@ def parse_ranges(spec):
             raise InputError(f"scale {scale!r} is not one of {', '.join(SCALES)}",
                              keyword="ranges", value=shown)
         try:
-            lo, hi = (float(parse_value(str(f).strip(), f"--range {shown}")) for f in fields[:2])
+            lo, hi = (float(parse_value(str(f).strip(), keyword="ranges", value=shown))
+                      for f in fields[:2])
         except (TypeError, ValueError):
             raise InputError("lo and hi must be numbers", keyword="ranges", value=shown) from None
         if not (math.isfinite(lo) and math.isfinite(hi)):
@@ -156,13 +157,14 @@ def expand(grid=None, zipped=None, random=None, ranges=None, seed=None):
         shown = ", ".join(f"{k} has {len(v)}" for k, v in zipped.items())
         raise InputError(f"zipped lists must have the same length ({shown})", keyword="zip",
                          value=next(iter(zipped)))
-    keys = [*grid, *zipped, *ranges]
     seen = set()
-    for key in keys:
-        if key in seen:
-            raise InputError(f"{key} is swept twice (in more than one of grid, zip and ranges)",
-                             keyword="grid", value=key)
-        seen.add(key)
+    for keyword, keys in (("grid", grid), ("zip", zipped), ("ranges", ranges)):
+        for key in keys:
+            if key in seen:
+                raise InputError(f"{key} is swept twice (in more than one of {{grid}}, {{zip}} "
+                                 "and {ranges})", keyword=keyword, value=key,
+                                 mentions={"grid": "grid", "zip": "zip", "ranges": "ranges"})
+            seen.add(key)
     grid_rows = [dict(zip(grid, values)) for values in itertools.product(*grid.values())]
     zip_rows = [dict(zip(zipped, values)) for values in zip(*zipped.values())] or [{}]
     random_rows = sample(ranges, random, seed) if random is not None else [{}]
