@@ -76,7 +76,8 @@ def simulate(config_or_path, *, output_dir=None, overrides=None, progress=True):
 
     contact = getattr(integrator, "contact", None)
     columns = STATS_COLUMNS + (CONTACT_COLUMNS if contact is not None else ())
-    with FrameWriter(out_dir, model.faces, model.mesh.uv, columns) as writer:
+    with FrameWriter(out_dir, model.faces, model.mesh.uv, columns,
+                     formats=config.output.format) as writer:
 
         def record(frame, report, wall):
             nonlocal written, worst_stretch
@@ -85,7 +86,7 @@ def simulate(config_or_path, *, output_dir=None, overrides=None, progress=True):
             worst_stretch = max(worst_stretch, stretch)
             if contact is not None:  # the exact test: no frame with a crossing is written
                 contact.check_frame(state.x, state.time, frame, out_dir)
-            writer.write_frame(frame, state.x)
+            writer.write_frame(frame, state.x, state.time)
             writer.write_stats(dict(
                 frame=frame, time=state.time, kinetic=kinetic, elastic=elastic, gravity=gravity,
                 newton_iterations=report.newton_iterations, cg_iterations=report.cg_iterations,
