@@ -367,7 +367,7 @@ def profile(out_dir, steps=20):
                     t0 = time.perf_counter()
                     kinetic, elastic, gravity = integ.energies(state)
                     stretch = integ.max_stretch(state)
-                    w.write_frame(frame, state.x)
+                    w.write_frame(frame, state.x, state.time)
                     w.write_stats(dict(frame=frame, time=state.time, kinetic=kinetic, elastic=elastic,
                                        gravity=gravity, newton_iterations=1, cg_iterations=0,
                                        residual=0.0, max_stretch=stretch, wall_s=0.0, sweeps=0,

@@ -106,6 +106,7 @@ time:
 output:
   dir: out/             # frame_00000.ply (initial state), frame_00001.ply, …, stats.csv
   every: 1              # write every n-th frame
+  format: [ply]         # some of ply (frames here), obj (obj/, uv per corner), mdd (cache/cloth.mdd: one point cache + its base mesh cache/cloth.obj)
 """
 
 

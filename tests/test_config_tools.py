@@ -26,7 +26,7 @@ SPEC_DEFAULTS = {  # the documented example, entry by entry, and the simulator's
                "relaxation": 1.0, "pbd_stiffness": 1.0, "strain_limit": 0.0, "cfl": 0.5,
                "chebyshev_rho": 0.9, "vbd_tolerance": 0.0},
     "time": {"fps": 30, "frames": 120},
-    "output": {"dir": "out/", "every": 1},
+    "output": {"dir": "out/", "every": 1, "format": ["ply"]},
 }
 
 

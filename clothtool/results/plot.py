@@ -21,7 +21,7 @@ HISTOGRAM_PAIRS = 100
 MISSING = "clothtool plot needs matplotlib: pip install 'clothtool[plot]'"
 
 
-def _pyplot():
+def pyplot():
     try:
         import matplotlib
     except ImportError:
@@ -79,7 +79,7 @@ def plot_result(h5_path, output, *, pair=None, field=None, component=0, dpi=120)
     ``field``: the mapped dataset (default: stretch, else area_ratio). Returns the pair drawn."""
     from clothtool.io.h5 import check_output_path
 
-    plt = _pyplot()
+    plt = pyplot()
     check_output_path(output)
     fmt = _image_format(output)
     with open_result(h5_path) as h5:

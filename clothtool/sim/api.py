@@ -80,7 +80,7 @@ def simulate(config_or_path, *, output_dir=None, overrides=None, progress=True):
     contact = getattr(integrator, "contact", None)
     columns = STATS_COLUMNS + (CONTACT_COLUMNS if contact is not None else ())
     with FrameWriter(out_dir, written_mesh.faces, written_mesh.uv, columns,
-                     written_mesh.corner_uv) as writer:
+                     formats=config.output.format, corner_uv=written_mesh.corner_uv) as writer:
 
         def record(frame, report, wall):
             nonlocal written, worst_stretch
@@ -90,7 +90,7 @@ def simulate(config_or_path, *, output_dir=None, overrides=None, progress=True):
             if contact is not None:  # the exact test: no frame with a crossing is written
                 contact.check_frame(state.x, state.time, frame, out_dir)
             writer.write_frame(frame, state.x if model.file_vertex is None
-                               else state.x[model.file_vertex])
+                               else state.x[model.file_vertex], state.time)
             writer.write_stats(dict(
                 frame=frame, time=state.time, kinetic=kinetic, elastic=elastic, gravity=gravity,
                 newton_iterations=report.newton_iterations, cg_iterations=report.cg_iterations,

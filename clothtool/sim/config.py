@@ -23,7 +23,7 @@ import yaml
 
 from clothtool.errors import InputError
 from clothtool.sim import methods
-from clothtool.sim.schema import (Section, as_dict, choice, flag, integer, number, one_of,
+from clothtool.sim.schema import (Section, as_dict, choice, choices, flag, integer, number, one_of,
                                   pair_or_number, path, resolve_paths, section, setting,
                                   suggest, tagged, type_error, vector3)
 
@@ -36,6 +36,7 @@ METHODS = tuple(methods.METHODS)
 PRECONDITIONERS = ("jacobi", "multigrid")
 PBD_VARIANTS = ("gauss-seidel", "jacobi", "hierarchical")
 INTEGRATORS = ("bdf2", "euler")
+OUTPUT_FORMATS = ("ply", "obj", "mdd")
 
 positive = number(minimum=0, exclusive=True)
 non_negative = number(minimum=0)
@@ -494,8 +495,14 @@ class Time(Section):
 
 @dataclass(frozen=True)
 class Output(Section):
+    """Where and what a run writes: every ``every``-th frame, in each of ``format``: ``ply``
+    (binary PLY frames with the rest uv as ``s t``), ``obj`` (OBJ frames in ``obj/`` with
+    the pattern's uv per corner), ``mdd`` (one point cache of every written frame with its
+    time, ``cache/cloth.mdd``, and its base mesh ``cache/cloth.obj``)."""
+
     dir: Path = setting(Path("out"), path)
     every: int = setting(1, integer(minimum=1))
+    format: tuple = setting(("ply",), choices(OUTPUT_FORMATS))
 
 
 @dataclass(frozen=True)

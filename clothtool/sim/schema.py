@@ -148,6 +148,23 @@ def choice(options):
     return check
 
 
+def choices(options):
+    """A non-empty list of distinct names from ``options`` (a single name counts as a list
+    of one), as a tuple in the order given."""
+    one = choice(options)
+
+    def check(value, key):
+        items = [value] if isinstance(value, str) else value
+        if not isinstance(items, list) or not items:
+            raise type_error(key, f"a list of {spell(options)}", value)
+        out = tuple(one(v, f"{key}[{i}]") for i, v in enumerate(items))
+        repeated = sorted({v for v in out if out.count(v) > 1})
+        if repeated:
+            raise InputError(f"{key} names {repeated[0]!r} twice")
+        return out
+    return check
+
+
 def flag(value, key):
     if not isinstance(value, bool):
         raise type_error(key, "true or false", value)

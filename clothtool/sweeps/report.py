@@ -211,9 +211,9 @@ def plot_metric(report, metric, against, fmt="png"):
     values span a factor of 20 or more. Written as ``METRIC-vs-AGAINST.FMT``."""
     import numpy as np
 
-    from clothtool.results.plot import _pyplot
+    from clothtool.results.plot import pyplot
 
-    plt = _pyplot()
+    plt = pyplot()
     others = [p for p in report.columns[1:report.columns.index("status")] if p != against]
     groups = {}
     for row in report.rows:
