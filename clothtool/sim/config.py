@@ -92,7 +92,7 @@ def seam_list(value, key):
 @dataclass(frozen=True)
 class Sewing(Section):
     """The sewing phase of ``mesh.seams``: stitches of ``stiffness`` N/m per metre of seam pull
-    each pair together until every pair is within ``weld`` m (None: the self-collision
+    each pair together until every pair is within ``weld`` m (None: 1.25 × the self-collision
     thickness), then the pairs are welded; not closed after ``time`` s is a failure.
     ``gravity``: whether gravity acts while the garment is sewn (off: the panels stay where
     they are laid out)."""

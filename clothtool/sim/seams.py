@@ -25,6 +25,10 @@ from clothtool.errors import InputError, NumericalError
 from clothtool.sim.mesh import RestMesh
 
 
+WELD = 1.25  # default weld distance in self-collision thicknesses: the barrier reaches a little
+# beyond the thickness, so a stitch held off by it rests just outside; a quarter more welds it
+
+
 def add_config_seams(builder, mesh_spec, scene):
     """Check ``mesh.seams`` against the mesh and add its stitches to the builder."""
     if not mesh_spec.seams:
@@ -42,7 +46,7 @@ def add_config_seams(builder, mesh_spec, scene):
     builder.add_stitches(np.concatenate(pairs), np.concatenate(stiffness))
     builder.sewing = mesh_spec.sewing
     builder.weld_distance = (mesh_spec.sewing.weld if mesh_spec.sewing.weld is not None
-                             else scene.self_collision.thickness)
+                             else WELD * scene.self_collision.thickness)
     check_apart(mesh, builder.stitches)
 
 
