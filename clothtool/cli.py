@@ -23,7 +23,7 @@ OPTIONS = {"fields": "--fields", "dtype": "--dtype", "compression": "--compressi
            "pairs": "--pairs", "reference": "--reference", "uv_scale": "--uv-scale",
            "vertex_average": "--vertex-average", "kabsch": "--kabsch", "pair": "--pair",
            "field": "--field", "component": "--component", "color_range": "--range",
-           "overrides": "--set"}
+           "overrides": "--set", "fps": "--fps", "dpi": "--dpi"}
 """Library keyword argument → the option that sets it, for the messages of InputError."""
 
 EXIT_CODES_HELP = """\b
@@ -317,13 +317,64 @@ Needs matplotlib: pip install 'clothtool[plot]'
 @click.option("--component", default=0, show_default=True, type=int,
               help="Component of the mapped field (stretch: 0 = λ1, 1 = λ2).")
 @click.option("--dpi", default=120, show_default=True, type=int, help="Resolution of raster images.")
-def plot(result, output, pair, field, component, dpi):
+@click.option("--config", "--colliders", "config", default=None, type=click.Path(dir_okay=False),
+              help="The simulation config of the run: draws its colliders at the pair's frame.")
+def plot(result, output, pair, field, component, dpi, config):
     """An overview figure: stretch and area-ratio percentiles over the sequence, histograms,
-    and one pair's field drawn on the deformed mesh."""
+    and one pair's field drawn on the deformed mesh in 3D (with the run's colliders when
+    --config names its simulation config)."""
     from clothtool.results.plot import plot_result
+    from clothtool.sim.scene import run_scene
 
-    drawn = plot_result(result, output, pair=pair, field=field, component=component, dpi=dpi)
+    drawn = plot_result(result, output, pair=pair, field=field, component=component, dpi=dpi,
+                        scene=run_scene(config))
     click.echo(f"wrote {output} (mesh map: pair {drawn})")
+
+
+RENDER_EPILOG = """\b
+Examples:
+  clothtool render demo-out/drape -o demo-out/drape-render --config sample_data/drape.yaml
+      the cloth and the body it falls on: frame_00000.png ... and movie.mp4 (or movie.gif)
+  clothtool render runs/run_0003 -o pictures/      a sweep's run: its config.yaml is used
+  clothtool render 'out/obj/*.obj' -o pics/ --fps 60 --no-movie
+
+\b
+The movie is an MP4 when ffmpeg is on PATH, else an animated GIF. Frame times come
+from the run's stats.csv (else frame number / --fps). Needs matplotlib.
+
+""" + EXIT_CODES_HELP
+
+
+@main.command(epilog=RENDER_EPILOG)
+@click.argument("frames", nargs=-1, required=True, metavar="FRAMES...")
+@click.option("-o", "--output", required=True, type=click.Path(file_okay=False),
+              help="Folder of the pictures: frame_NNNNN.png and movie.mp4 or movie.gif.")
+@click.option("--config", default=None, type=click.Path(dir_okay=False),
+              help="The simulation config of the run: draws its colliders, with gravity down "
+                   "[default: config.yaml beside the frames, if there is one].")
+@click.option("--fps", default=None, type=float,
+              help="Frames per second of frames without stats.csv times [default: the config's, else 30].")
+@click.option("--dpi", default=100, show_default=True, type=int,
+              help="Pixels per inch of the 6.4 × 4.8 inch pictures.")
+@click.option("--movie/--no-movie", default=True, show_default=True, help="Also write the movie.")
+@click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary.")
+def render(frames, output, config, fps, dpi, movie, quiet):
+    """Pictures of a simulated sequence: each frame's cloth (and the run's colliders)
+    in 3D as a PNG, and a short movie of them.
+
+    FRAMES is a run's folder of PLY or OBJ frames, a glob, or a list of files.
+    """
+    from pathlib import Path
+
+    from clothtool.results.render import render_sequence
+    from clothtool.sim.scene import run_scene
+
+    first = Path(frames[0])
+    scene = run_scene(config, frames_dir=first if first.is_dir() else None)
+    result = render_sequence(list(frames), output, scene=scene, fps=fps, dpi=dpi, movie=movie,
+                             progress=_progress_enabled(quiet))
+    if not quiet:
+        click.echo(result.describe())
 
 
 

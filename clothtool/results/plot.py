@@ -3,9 +3,9 @@
 Four panels: (1) the 5th/50th/95th percentiles of the principal stretches λ1, λ2 and
 (2) of the area ratio λ1λ2 against the deformed frame, from ``/summary``; (3) histograms of
 λ1, λ2 and the area ratio over the triangles of the pairs (at most :data:`HISTOGRAM_PAIRS` pairs, evenly
-spaced); (4) one field of one pair drawn on its deformed mesh, projected on the mesh's
-best-fit plane (the two leading right-singular vectors of the centred positions). A
-tetrahedral result shows λ3 too, the volume ratio, and its boundary surface in panel 4.
+spaced); (4) one field of one pair drawn on its deformed mesh in 3D (:mod:`view3d`), with the
+run's colliders at the frame's time when its scene is given. A tetrahedral result shows λ3
+too, the volume ratio, and its boundary surface in panel 4.
 """
 
 import os
@@ -16,8 +16,12 @@ from clothtool.errors import InputError
 from clothtool.io.atomic import atomic_path
 from clothtool.results.export import field_values
 from clothtool.io.result import open_result, read_summary
+from clothtool.results.frame_times import frame_times
+from clothtool.results.view3d import (COLLIDER_RGB, draw_meshes, layout, light_direction, lit,
+                                      push_back, setup_axes)
 
 HISTOGRAM_PAIRS = 100
+FIELD_AMBIENT = 0.65  # the field's colours lit softly: shape visible, colours still readable
 MISSING = "clothtool plot needs matplotlib: pip install 'clothtool[plot]'"
 
 
@@ -30,14 +34,6 @@ def pyplot():
     import matplotlib.pyplot as plt
 
     return plt
-
-
-def best_fit_projection(x):
-    """(N, 2) coordinates of points ``x`` (N, 3) in their best-fit plane (least squares)."""
-    centred = x - x.mean(axis=0)
-    _, _, vt = np.linalg.svd(centred, full_matrices=False)
-    axes = vt[:2] * np.sign(vt[:2].sum(axis=1, keepdims=True) + 1e-300)  # deterministic signs
-    return centred @ axes.T
 
 
 def _band(ax, t, summary, name, label, color):
@@ -73,10 +69,34 @@ def _image_format(output):
     return fmt
 
 
-def plot_result(h5_path, output, *, pair=None, field=None, component=0, dpi=120):
+def _draw_field_3d(ax, x, faces, values, scene, frame_path):
+    """The deformed mesh ``x`` in 3D with its face ``values`` in viridis (NaN grey), lit
+    softly; the colliders of ``scene`` at the frame's time. Returns the colour mapping."""
+    from matplotlib import colormaps
+    from matplotlib.cm import ScalarMappable
+    from matplotlib.colors import Normalize
+
+    finite = values[np.isfinite(values)]
+    vmin, vmax = (finite.min(), finite.max()) if finite.size else (0.0, 1.0)
+    mapping = ScalarMappable(Normalize(vmin, vmax if vmax > vmin else vmin + 1e-12),
+                             colormaps["viridis"].with_extremes(bad="0.5"))
+    times = frame_times([frame_path], scene.fps) if scene is not None else [0.0]
+    cloth, colliders, (centre, half) = layout(x[None], scene, times)
+    light = light_direction()
+    rgb = mapping.to_rgba(np.ma.masked_invalid(values))[:, :3]
+    meshes = [(cloth[0], faces, lit(cloth[0], faces, rgb, light, ambient=FIELD_AMBIENT))]
+    meshes += [(push_back(v, f), f, lit(v, f, COLLIDER_RGB, light)) for v, f in colliders[0]]
+    draw_meshes(ax, meshes)
+    setup_axes(ax, centre, half)
+    return mapping
+
+
+def plot_result(h5_path, output, *, pair=None, field=None, component=0, dpi=120, scene=None):
     """Draw the overview figure of the result ``h5_path`` into ``output`` (format from its
     extension). ``pair``: the pair of the map (default: the largest 95th percentile of λ1);
-    ``field``: the mapped dataset (default: stretch, else area_ratio). Returns the pair drawn."""
+    ``field``: the mapped dataset (default: stretch, else area_ratio); ``scene``: the run's
+    scene (:class:`clothtool.sim.scene.RunScene`: colliders at the deformed frame's time,
+    up), or None (y up). Returns the pair drawn."""
     from clothtool.io.h5 import check_output_path
 
     plt = pyplot()
@@ -93,6 +113,7 @@ def plot_result(h5_path, output, *, pair=None, field=None, component=0, dpi=120)
         offset = int(h5.attrs.get("pair_offset", 0))
         frame = int(h5["pairs"][pair - offset][1])
         x = h5["frame_vertices"][frame].astype(np.float64)
+        frame_path = h5["frames"][frame].decode()
         if where == "tet":  # its boundary surface, each triangle with its tetrahedron's value
             from clothtool.io.tetmesh import boundary_faces
 
@@ -136,30 +157,14 @@ def plot_result(h5_path, output, *, pair=None, field=None, component=0, dpi=120)
     ax.set(xlabel="value", ylabel="tetrahedra" if tets else "triangles",
            title=f"Histogram over {'all' if n_hist == n_pairs else n_hist} of {n_pairs} pairs")
 
-    ax = axes[1, 1]
-    uv = best_fit_projection(x)
-    finite = values[np.isfinite(values)]
-    vmin, vmax = (finite.min(), finite.max()) if finite.size else (0.0, 1.0)
-    if where == "face":
-        from matplotlib.collections import PolyCollection
-
-        from matplotlib import colormaps
-
-        shapes = PolyCollection(uv[faces], cmap=colormaps["viridis"].with_extremes(bad="0.5"),
-                                edgecolors="face", linewidths=0.2)
-        shapes.set_array(np.ma.masked_invalid(values))
-        shapes.set_clim(vmin, vmax)
-        ax.add_collection(shapes)
-        mappable = shapes
-    else:
-        mappable = ax.tripcolor(uv[:, 0], uv[:, 1], faces, np.nan_to_num(values, nan=vmin),
-                                shading="gouraud", cmap="viridis", vmin=vmin, vmax=vmax)
-    ax.autoscale_view()
-    ax.set_aspect("equal")
-    ax.set_axis_off()
+    axes[1, 1].remove()
+    ax = fig.add_subplot(2, 2, 4, projection="3d")
+    mappable = _draw_field_3d(ax, x, faces, values if where == "face" else values[faces].mean(axis=1),
+                              scene, frame_path)
     label = f"λ{component + 1}" if field == "stretch" else name
     fig.colorbar(mappable, ax=ax, shrink=0.8, label=label)
-    ax.set_title(f"{label} of pair {pair} (frame {frame}), best-fit plane view")
+    shown = " with the colliders" if scene is not None and scene.colliders is not None else ""
+    ax.set_title(f"{label} of pair {pair} (frame {frame}){shown}")
     fig.suptitle(str(h5_path))
     with atomic_path(output) as tmp:  # the temporary name has no extension: say the format
         fig.savefig(tmp, dpi=dpi, format=fmt)

@@ -2,14 +2,12 @@
 
 Each frame shows the cloth (and, given the run's scene, its colliders at the frame's time)
 in 3D (:mod:`clothtool.results.view3d`), with one camera for the whole sequence that holds
-every frame's cloth. A frame's time is its row in the run's ``stats.csv`` (beside the frames,
-or one folder up for ``obj/``), else its frame number (``frame_NNNNN``) over the frame rate.
+every frame's cloth, at the frame's time (:func:`~clothtool.results.frame_times.frame_times`).
 The movie is an MP4 through ffmpeg when matplotlib finds it, else an animated GIF
 (matplotlib's PillowWriter), at the frames' own rate. Every frame is read and every collider
 placed before anything is written; PNGs and the movie appear complete or not at all.
 """
 
-import csv
 import os
 import re
 import sys
@@ -21,17 +19,14 @@ import numpy as np
 from clothtool.errors import InputError
 from clothtool.io.atomic import atomic_path, finish
 from clothtool.io.frames import FrameReader, discover_frames, is_tet_path
+from clothtool.results.frame_times import frame_times
 from clothtool.results.plot import pyplot
-from clothtool.results.view3d import (CLOTH_RGB, COLLIDER_RGB, bounds, display_basis,
-                                      draw_meshes, light_direction, lit, push_back,
-                                      setup_axes)
+from clothtool.results.view3d import (CLOTH_RGB, COLLIDER_RGB, draw_meshes, layout,
+                                      light_direction, lit, push_back, setup_axes)
 
-FRAME_NUMBER = re.compile(r"frame_(\d+)\.")
 PNG = re.compile(r"frame_\d{5,}\.png")
 MOVIES = ("movie.mp4", "movie.gif")
 DEFAULT_FPS = 30.0
-PLANE_SPAN = 1.5  # a plane patch's half-size, in half-sizes of the cloth's bounding cube
-VIEW_SPAN = 3.0  # colliders widen the view to at most this many half-sizes about the cloth
 
 
 @dataclass
@@ -47,28 +42,6 @@ class RenderResult:
                 f"({1000 * self.seconds_per_frame:.0f} ms/frame)")
 
 
-def frame_times(paths, fps):
-    """(K,) time in seconds of each frame file: its ``stats.csv`` row (the run's folder:
-    the frames' own, or one up), else frame number / ``fps``, else index / ``fps``."""
-    numbers = []
-    for k, p in enumerate(paths):
-        found = FRAME_NUMBER.match(os.path.basename(p))
-        numbers.append(int(found.group(1)) if found else None)
-    folder = Path(paths[0]).parent
-    recorded = {}
-    for stats in (folder / "stats.csv", folder.parent / "stats.csv"):
-        if stats.is_file():
-            with open(stats, newline="", encoding="ascii", errors="replace") as fh:
-                for row in csv.DictReader(fh):
-                    try:
-                        recorded[int(row["frame"])] = float(row["time"])
-                    except (KeyError, TypeError, ValueError):
-                        break
-            break
-    return np.array([recorded[n] if n in recorded else (n if n is not None else k) / fps
-                     for k, n in enumerate(numbers)])
-
-
 def render_sequence(frames, output_dir, *, scene=None, fps=None, dpi=100, size=(6.4, 4.8),
                     movie=True, progress=False):
     """Draw every frame of ``frames`` (a folder, glob or list of PLY/OBJ files) into
@@ -81,9 +54,9 @@ def render_sequence(frames, output_dir, *, scene=None, fps=None, dpi=100, size=(
     from tqdm import tqdm
 
     if fps is not None and not fps > 0:
-        raise InputError(f"fps=: must be > 0, got {fps}", keyword="fps")
-    if dpi <= 0 or min(size) <= 0:
-        raise InputError(f"dpi=: and size= must be positive, got {dpi} and {size}", keyword="dpi")
+        raise InputError(f"must be > 0, got {fps:g}", keyword="fps")
+    if not dpi > 0:
+        raise InputError(f"must be > 0, got {dpi}", keyword="dpi")
     paths = discover_frames(frames)
     if is_tet_path(paths[0]):
         raise InputError(f"{paths[0]}: render draws triangle meshes (PLY or OBJ frames), "
@@ -94,19 +67,7 @@ def render_sequence(frames, output_dir, *, scene=None, fps=None, dpi=100, size=(
     positions = np.stack([reader.positions(k) for k in range(len(paths))])
     faces = reader.faces
     times = frame_times(paths, fps or (scene.fps if scene is not None else DEFAULT_FPS))
-    up = scene.up if scene is not None else np.array([0.0, 1.0, 0.0])
-    basis = display_basis(up)
-    cloth = positions @ basis.T
-    centre, half = bounds(cloth.reshape(-1, 3))
-    world_centre = basis.T @ centre
-    colliders = [[(s.vertices @ basis.T, s.faces) for s in
-                  scene.surfaces(t, world_centre, PLANE_SPAN * half)] for t in times] \
-        if scene is not None else [[] for _ in times]
-    solid = [x for step in colliders for x, _ in step]
-    if solid:  # colliders widen the view, within VIEW_SPAN of the cloth
-        everything = np.concatenate([cloth.reshape(-1, 3)] + solid)
-        everything = np.clip(everything, centre - VIEW_SPAN * half, centre + VIEW_SPAN * half)
-        centre, half = bounds(everything)
+    cloth, colliders, (centre, half) = layout(positions, scene, times)
     light = light_direction()
 
     _remove_earlier_render(out)

@@ -18,6 +18,8 @@ CLOTH_RGB = (0.80, 0.33, 0.22)
 COLLIDER_RGB = (0.72, 0.74, 0.78)
 AMBIENT = 0.35
 ELEVATION, AZIMUTH = 18.0, -58.0  # degrees: the camera a little above, from the front left
+PLANE_SPAN = 1.5  # a plane patch's half-size, in half-sizes of the cloth's bounding cube
+VIEW_SPAN = 3.0  # colliders widen the view to at most this many half-sizes about the cloth
 ZOOM = 1.4  # the cube of the bounds fills the picture's height at about 1.4
 
 
@@ -94,3 +96,25 @@ def draw_meshes(ax, meshes):
                                   linewidths=0.3)
     ax.add_collection3d(collection)
     return collection
+
+
+def layout(positions, scene, times):
+    """Display coordinates of cloth frames ``positions`` (K, N, 3), of the colliders of
+    ``scene`` (a run's scene with ``up`` and ``surfaces(t, centre, extent)``, or None: y
+    up) at each of ``times`` (K,), and the view's cube: (cloth (K, N, 3), [[(x, faces)] per
+    frame], (centre, half)). The cube holds every frame's cloth, and the colliders within
+    VIEW_SPAN half-sizes of it."""
+    up = scene.up if scene is not None else np.array([0.0, 1.0, 0.0])
+    basis = display_basis(up)
+    cloth = positions @ basis.T
+    centre, half = bounds(cloth.reshape(-1, 3))
+    world_centre = basis.T @ centre
+    colliders = [[(s.vertices @ basis.T, s.faces) for s in
+                  scene.surfaces(t, world_centre, PLANE_SPAN * half)] for t in times] \
+        if scene is not None else [[] for _ in times]
+    solid = [x for step in colliders for x, _ in step]
+    if solid:
+        everything = np.concatenate([cloth.reshape(-1, 3)] + solid)
+        everything = np.clip(everything, centre - VIEW_SPAN * half, centre + VIEW_SPAN * half)
+        centre, half = bounds(everything)
+    return cloth, colliders, (centre, half)
