@@ -126,6 +126,28 @@ def test_a_rolled_sheet_stores_kb_kappa2_over_2_per_unit_area(kind, along):
     assert 1 - 1.5 * edge < ratio < 1.005
 
 
+@pytest.mark.parametrize("kind", ["grid", "rot45", "delaunay"])
+def test_a_uniform_bend_or_twist_stores_the_same_energy_in_every_direction(kind):
+    """x_z = ½ uᵀHu with H = R diag(1, 0) Rᵀ (a bend) or R [[0, 1], [1, 0]] Rᵀ (a twist), R
+    turned by θ: W = ½‖H‖² A on a disc, less a band at the rim (no moment across a free edge:
+    the rim's share ⟨(nᵀHn)²⟩/‖H‖² is the same for every θ), so W may not depend on θ. On the
+    criss-cross grid half the vertices see no twist; before their twist was handed over to
+    the neighbours area by area, the twist along the lattice came out 4 % softer than at 45°
+    (what is left, ≤ 0.2 % here, is the rim, where the lattice meets the circle unevenly)."""
+    radius, spacing = 0.15, 0.01  # the drape test's disc
+    uv, faces = disc(radius, spacing, kind, seed=1)
+    q = hessian_bending_matrix(uv, faces)
+    for shape in (np.diag([1.0, 0.0]), np.array([[0.0, 1.0], [1.0, 0.0]])):
+        ratios = []
+        for theta in np.radians([0.0, 15.0, 30.0, 45.0, 60.0, 75.0]):
+            r = np.array([[np.cos(theta), -np.sin(theta)], [np.sin(theta), np.cos(theta)]])
+            h = r @ shape @ r.T
+            w = 0.5 * np.einsum("na,ab,nb->n", uv, h, uv)
+            ratios.append(0.5 * w @ q @ w / (0.5 * np.sum(h * h) * np.pi * radius ** 2))
+        assert max(ratios) / min(ratios) - 1 < 0.005, ratios
+        assert 1 - 0.5 * spacing / radius < min(ratios) and max(ratios) < 1.001, ratios
+
+
 def test_mixed_voronoi_areas_sum_to_the_area():
     uv, faces = disc(0.1, 0.02, "delaunay", seed=4)
     p = uv[faces]
@@ -140,7 +162,7 @@ def test_mixed_voronoi_areas_sum_to_the_area():
 
 @pytest.mark.parametrize("overhang", [1, 2, 3], ids=["1c", "2c", "3c"])
 @pytest.mark.parametrize("kind,divisions", [("grid", 20), ("across", 20), ("rot45", 20),
-                                            ("delaunay", 40)])
+                                            ("delaunay", 20), ("delaunay", 40)])
 def test_cantilever_droops_as_the_elastica(tmp_path, kind, divisions, overhang):
     """ASTM D1388: a 0.1 m strip, 0.2 kg/m², bending length 0.1/overhang m; tip drop within 3 %."""
     length, width, density = 0.1, 0.025, 0.2

@@ -204,8 +204,8 @@ def _delaunay_strip(start, length, width, spacing, kind, seed, clamp_line):
         raise ValueError(f"strip kind {kind!r}")
     ok = ((inner[:, 0] > start + margin) & (inner[:, 0] < length - margin)
           & (np.abs(inner[:, 1]) < width / 2 - margin))
-    for u in ends[2:]:
-        ok &= np.abs(inner[:, 0] - u) > margin
+    if clamp_line is not None:  # the clamp is its two lines, as on a grid: nothing between
+        ok &= inner[:, 0] > clamp_line + margin
     return _delaunay(np.concatenate(lines + [inner[ok]]), spacing)
 
 
