@@ -25,6 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from benchmarks.common import markdown_table, write_csv
+from clothtool.io.obj_writer import write_obj
 
 FPS, FRAMES = 30, 60
 WIDTH, HEIGHT, NX, NY = 0.4, 0.4, 17, 17
@@ -51,18 +52,11 @@ def garment(folder):
     front = np.column_stack([uv[:, 0] - WIDTH / 2, uv[:, 1] - HEIGHT / 2, np.full(n, DEPTH)])
     back = np.column_stack([WIDTH / 2 - uv[:, 0], uv[:, 1] - HEIGHT / 2, np.full(n, -DEPTH)])
     x = np.concatenate([front, back])
-    lines = [f"v {float(p):.17g} {float(q):.17g} {float(r):.17g}" for p, q, r in x]
-    t = 0
-    for name, f in (("front", faces), ("back", faces + n)):
-        corner = uv[faces]
-        lines += [f"vt {float(u):.17g} {float(v):.17g}" for u, v in corner.reshape(-1, 2)]
-        lines.append(f"g {name}")
-        for k, tri in enumerate(f):
-            c = t + 3 * k + 1
-            lines.append(f"f {tri[0] + 1}/{c} {tri[1] + 1}/{c + 1} {tri[2] + 1}/{c + 2}")
-        t += 3 * len(f)
     path = Path(folder) / "garment.obj"
-    path.write_text("\n".join(lines) + "\n")
+    corner = uv[faces]
+    write_obj(path, x, np.concatenate([faces, faces + n]),
+              corner_uv=np.concatenate([corner, corner]),
+              groups=(["front", "back"], np.repeat([0, 1], len(faces))))
     rows = np.arange(NY) * NX
     # front's left edge (x = −W/2, column 0) to back's column NX−1 (x = −W/2), and the right
     seams = [{"a": (rows).tolist(), "b": (n + rows + NX - 1).tolist()},

@@ -3,6 +3,8 @@ per-corner ``vt`` (the pattern), positions laid out in 3D."""
 
 import numpy as np
 
+from clothtool.io.obj_writer import write_obj as write_obj_file
+
 
 def panel(nx, ny, width, height):
     """(uv (nx·ny, 2), faces) of a regular panel, vertex j·nx + i at (i, j) spacing,
@@ -20,16 +22,10 @@ def panel(nx, ny, width, height):
 def write_obj(path, positions, groups):
     """An OBJ of ``positions`` (N, 3) and ``groups``: [(name, faces (K, 3), corner uv (K, 3, 2))],
     each group a ``g`` with its own ``vt`` per corner."""
-    lines = [f"v {float(x)!r} {float(y)!r} {float(z)!r}" for x, y, z in positions]
-    t = 0
-    for name, faces, corner in groups:
-        lines += [f"vt {float(u)!r} {float(v)!r}" for u, v in corner.reshape(-1, 2)]
-        lines.append(f"g {name}")
-        for k, f in enumerate(faces):
-            c = t + 3 * k + 1
-            lines.append(f"f {f[0] + 1}/{c} {f[1] + 1}/{c + 1} {f[2] + 1}/{c + 2}")
-        t += 3 * len(faces)
-    path.write_text("\n".join(lines) + "\n")
+    write_obj_file(path, positions, np.concatenate([f for _, f, _ in groups]),
+                   corner_uv=np.concatenate([c for _, _, c in groups]),
+                   groups=([name for name, _, _ in groups],
+                           np.repeat(np.arange(len(groups)), [len(f) for _, f, _ in groups])))
     return path
 
 

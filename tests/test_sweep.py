@@ -457,6 +457,15 @@ def _group_alive(pgid):
 
 
 @pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="needs Linux /proc")
+def _wait_for_frame(proc, path, timeout=300):
+    """Wait until the sweep ``proc`` has written ``path``; fail if it ends or times out first."""
+    deadline = time.monotonic() + timeout
+    while not path.exists():
+        assert proc.poll() is None, proc.communicate()
+        assert time.monotonic() < deadline
+        time.sleep(0.01)
+
+
 def test_a_pool_process_that_dies_stops_its_workers_and_the_rerun_resumes(tmp_path):
     """SIGKILL to the pool process in the middle of the runs: its workers are stopped (their
     runs left not done, no temporary file), the sweep says so in one line (exit code 1), and
@@ -467,11 +476,7 @@ def test_a_pool_process_that_dies_stops_its_workers_and_the_rerun_resumes(tmp_pa
             "--grid", "material.stretch=1e3,2e3,3e3,4e3"]
     proc = subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
     try:
-        deadline = time.monotonic() + 300
-        while not list(runs.glob("run_0000/frame_00010.ply")):
-            assert proc.poll() is None, proc.communicate()
-            assert time.monotonic() < deadline
-            time.sleep(0.01)
+        _wait_for_frame(proc, runs / "run_0000" / "frame_00010.ply")
         pool, = _pool_processes(proc.pid)
         os.kill(pool, signal.SIGKILL)
         stdout, stderr = proc.communicate(timeout=120)
@@ -502,11 +507,7 @@ def test_a_worker_that_dies_fails_its_run_only(tmp_path):
                              "--grid", "material.stretch=1e3,2e3,3e3,4e3"],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE)
     try:
-        deadline = time.monotonic() + 300
-        while not list(runs.glob("run_0000/frame_00010.ply")):
-            assert proc.poll() is None, proc.communicate()
-            assert time.monotonic() < deadline
-            time.sleep(0.01)
+        _wait_for_frame(proc, runs / "run_0000" / "frame_00010.ply")
         # the worker running run_0000: the one with a file of its folder open (stats.csv)
         victim = next(pid for pid in _descendants(proc.pid)
                       if any(str(runs / "run_0000") in path for path in _open_files(pid)))

@@ -48,7 +48,6 @@ class AttachMotion:
         return _in_frames(y, self.triangles, self.coords)
 
 
-
 def check_attach(attach, mesh, pinned, key):
     """(P,) int64 vertex lists of the ``scene.attach`` entries; InputError for a vertex out of
     range, pinned, or attached twice."""
@@ -92,20 +91,9 @@ def attach_motions(attach, vertices, colliders, x, t=0.0):
             x0 = xv
         else:
             motion = colliders.motions[c]
-            x0 = xv if motion is None or t == 0.0 else _unmoved(motion, xv, t)
+            x0 = xv if motion is None or t == 0.0 else motion.initial_positions(xv, t)
         out.append(AttachMotion(v, colliders, c, x0, triangles, coords))
     return out
-
-
-def _unmoved(motion, x, t):
-    """The positions x₀ at t = 0 that a rigid motion takes to x at time t:
-    x₀ = c + R(−θ(t))(x − c − T(t))."""
-    theta = -motion.speed * min(t, motion.until_rotate)
-    u = x - motion.center - motion.velocity * min(t, motion.until_translate)
-    k = motion.axis
-    c, s = np.cos(theta), np.sin(theta)
-    ku = (u * k).sum(axis=1, keepdims=True)
-    return motion.center + u * c + np.cross(k, u) * s + ku * k * (1.0 - c)
 
 
 @njit(cache=True)

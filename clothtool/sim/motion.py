@@ -28,13 +28,14 @@ class RigidMotion:
 
     def positions(self, x0, t):
         """(P, 3) positions at time t of points at x0 (P, 3) at t = 0."""
-        theta = self.speed * min(t, self.until_rotate)
-        u = x0 - self.center
-        k = self.axis
-        c, s = np.cos(theta), np.sin(theta)
-        ku = (u * k).sum(axis=1, keepdims=True)
-        turned = u * c + np.cross(k, u) * s + ku * k * (1.0 - c)
+        turned = rotate(x0 - self.center, self.axis, self.speed * min(t, self.until_rotate))
         return self.center + self.velocity * min(t, self.until_translate) + turned
+
+    def initial_positions(self, x, t):
+        """(P, 3) the positions x₀ at t = 0 that the motion takes to x (P, 3) at time t:
+        x₀ = c + R(−θ(t))(x − c − T(t))."""
+        u = x - self.center - self.velocity * min(t, self.until_translate)
+        return self.center + rotate(u, self.axis, -self.speed * min(t, self.until_rotate))
 
     def field(self, t):
         """(9,) the velocity field at time t as (centre c + T(t), angular velocity ω k̂,
@@ -46,6 +47,13 @@ class RigidMotion:
         if t < self.until_translate:
             out[6:] = self.velocity
         return out
+
+
+def rotate(u, k, theta):
+    """(P, 3) the vectors u (P, 3) turned by θ about the unit axis k̂ (Rodrigues' formula)."""
+    c, s = np.cos(theta), np.sin(theta)
+    ku = (u * k).sum(axis=1, keepdims=True)
+    return u * c + np.cross(k, u) * s + ku * k * (1.0 - c)
 
 
 def rigid_motion(motion):
