@@ -259,7 +259,8 @@ class NewtonIntegrator(Integrator):
         damped = self._damping is not None
         from_x_n = solver.newton_iterations == 1 or contact is not None  # x starts equal to x_n
         if damped and not from_x_n:
-            self.elastic.assemble(x_n, self._grad, values)
+            if self._panel_damping is None:  # per-panel damping assembles its own terms at x_n
+                self.elastic.assemble(x_n, self._grad, values)
             self._freeze_damping(values, model.damping / h_eff, x - base, x_n)
         # moving pins and colliders still short of their goal get three times as many more steps
         for it in range(4 * solver.newton_iterations):
