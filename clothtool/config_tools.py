@@ -73,8 +73,8 @@ scene:
     # (motion: {rotate: {center, axis, speed, until}, translate: {velocity, until}}, both allowed)
   collision_margin: 2.0e-3      # m, cloth rests this far from a collider surface (implicit:
                                 # never closer than margin − activation_distance)
-  activation_distance: null     # m, depth of the contact barrier; null = half the margin
-                                # (and half the self-collision thickness)
+  activation_distance: null     # m, depth of the contact barrier's wall inside the margin;
+                                # null = ¾ of the margin (and of the self-collision thickness)
   self_collision: null          # cloth–cloth contact (implicit), e.g. {thickness: 0.002, friction: 0.2}
   attach: []                    # garment vertices carried by a collider (implicit), e.g. {vertices: [0, 1], to: 0}
 

@@ -232,9 +232,10 @@ def test_bad_collider_files_are_one_line_errors_writing_nothing(tmp_path, kind, 
 
 
 def test_cloth_starting_inside_the_margin_or_crossing_is_refused(tmp_path):
-    body = write_mesh(tmp_path / "plate.ply", plate(2.0, 2.0, height=-0.0005))
-    with pytest.raises(InputError, match=r"closer to scene.colliders\[0\].mesh than half the "
-                                         "scene.collision_margin"):
+    body = write_mesh(tmp_path / "plate.ply", plate(2.0, 2.0, height=-0.0003))
+    with pytest.raises(InputError, match=r"closer to scene.colliders\[0\].mesh than the contact "
+                                         r"barrier's wall \(0.0005 m: scene.collision_margin less "
+                                         r"scene.activation_distance\)"):
         run(tmp_path, {"colliders": [{"mesh": {"ply": body}}]}, frames=1)
     body = write_mesh(tmp_path / "box.ply", box([-0.1, -0.1, -0.1], [0.1, 0.1, 0.1]))
     with pytest.raises(InputError, match=r"not intersection-free: cloth triangle \d+ crosses "

@@ -405,8 +405,9 @@ def attach_list(value, key):
 class Scene(Section):
     """``collision_margin`` (m): cloth rests this far from every collider surface;
     ``self_collision``: cloth–cloth contact, None = off. The implicit method's contact
-    barrier pushes from the margin (and the thickness) in to its wall ``activation_distance``
-    closer (None: half of each), which no pair ever crosses; the other methods project
+    barrier pushes from 4 % beyond the margin (and the thickness) in to its wall
+    ``activation_distance`` closer than them (None: three quarters of each), which no pair
+    ever crosses; the other methods project
     vertices onto spheres and planes."""
 
     gravity: tuple = setting((0.0, -9.81, 0.0), vector3())
