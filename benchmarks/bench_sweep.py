@@ -3,7 +3,7 @@ runs of about one second each, against N/jobs × the time of one run.
 
     python -m benchmarks sweep
 
-Writes ``sweep.csv`` and ``sweep.md``. The scene: a 16×16 sheet on two corners, 40
+Writes ``sweep.csv`` and ``sweep.md``. The scene: a 16×16 sheet on two corners, 60
 frames at 30 fps (the default implicit solver); the runs differ in
 ``material.density`` only (0.200 … 0.210 kg/m²), so each costs about the same.
 
@@ -45,7 +45,7 @@ BASE = """\
 mesh: {grid: {nx: 16, ny: 16, width: 0.5, height: 0.5, plane: xy}}
 scene: {pins: [top_corners]}
 solver: {tolerance: 1.0e-2}
-time: {fps: 30, frames: 40}
+time: {fps: 30, frames: 60}
 """
 COUNTS = (12, 24, 48)
 JOBS = (1, 2)
@@ -140,7 +140,7 @@ def run(out_dir):
     write_csv(out_dir / "sweep.csv", rows, columns)
     (out_dir / "sweep.md").write_text(
         "## Sweep overhead (`python -m benchmarks sweep`)\n\n"
-        "16×16 sheet, 40 frames per run. simulate = one `clothtool simulate` command alone, "
+        "16×16 sheet, 60 frames per run (about 1 s of simulation). simulate = one `clothtool simulate` command alone, "
         "end to end (what a user times); one run = the median of the runs' own simulation times "
         "in the sweep (a warm worker); ideal = runs / jobs × one run; ratio = sweep / ideal; "
         "user_ratio = sweep / (runs / jobs × simulate); sweep = `clothtool sweep -j JOBS` end to "

@@ -180,6 +180,8 @@ def test_a_combination_that_is_invalid_names_the_run(tmp_path):
      "settings=material.stretch=-1: material.stretch must be ≥ 0"),
     (dict(settings=["nokey"]), "settings='nokey': expected dotted.key=value"),
     (dict(analyze=True, fields="strech"), "fields=strech: unknown field 'strech'; choose from"),
+    (dict(analyze=True, fields="stretch,angle"), "fields=stretch,angle: 'angle' belongs to the "
+     "3D variant, which a sweep's analysis does not run; choose among the 2D fields"),
     (dict(jobs=0), "jobs=0: must be a positive integer"),
 ])
 def test_library_errors_name_its_keywords(tmp_path, kwargs, message):

@@ -35,7 +35,6 @@ The Hessian k_b Q ⊗ I₃ is constant and PSD; Q couples each vertex with (part
 """
 
 import numpy as np
-import scipy.sparse as sps
 from numba import njit
 
 SEEN = 1e-3  # a singular value of B_v/A_v below this is a component vertex v does not see
@@ -45,6 +44,8 @@ SQRT2 = np.sqrt(2.0)
 
 def hessian_bending_matrix(uv, faces):
     """Q (N × N scipy CSR, symmetric PSD, unit rigidity) of a flat pattern uv (N, 2), faces (M, 3)."""
+    import scipy.sparse as sps  # 0.4 s to import: only models with plate bending pay it
+
     uv = np.asarray(uv, np.float64)
     uv = uv - uv.mean(axis=0)
     faces = np.asarray(faces, np.int64)
@@ -144,6 +145,8 @@ def _outward(uv, edges, face_sign):
 
 def _weak_hessian(uv, faces, grad, area, sign, n):
     """S_c (three N × N CSR): the weak Hessian components (H₀₀, √2 H₀₁, H₁₁) of every vertex."""
+    import scipy.sparse as sps
+
     comps = ((0, 0, 1.0), (0, 1, SQRT2 / 2), (1, 0, SQRT2 / 2), (1, 1, 1.0))
     out = []
     edges, edge_face = _boundary_edges(faces)

@@ -76,8 +76,11 @@ def sweep(base, output_dir, *, grid=None, zip=None, random=None, ranges=None, se
         try:
             names = parse_fields(fields)
         except InputError as exc:
-            raise InputError(exc.detail, keyword="fields", value=fields,
-                             mentions=exc.mentions) from None
+            if exc.mentions:  # a 3D field: the run's analysis is the 2D one against the uv
+                raise InputError(exc.detail.split(";")[0] + ", which a sweep's analysis does "
+                                 "not run; choose among the 2D fields", keyword="fields",
+                                 value=fields) from None
+            raise InputError(exc.detail, keyword="fields", value=fields) from None
         analysis = {"reference": "uv", "fields": ",".join(names)}
     # the pool process starts now, so that its imports overlap the checks and the writing
     pool = None

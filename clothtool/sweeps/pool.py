@@ -41,7 +41,8 @@ from clothtool import interrupt
 from clothtool.errors import ClothtoolError, InputError
 
 # what every run imports (clothtool.sim.api imports the others when a run starts)
-PRELOAD = ("tqdm", "clothtool.sweeps.run", "clothtool.sim.api", "clothtool.sim.integrator",
+PRELOAD = ("tqdm", "clothtool.sweeps.run", "clothtool.sim.api", "clothtool.sim.builder",
+           "clothtool.sim.integrator",
            "clothtool.sim.methods", "clothtool.sim.model", "clothtool.sim.output")
 ANALYSIS_PRELOAD = ("clothtool.analysis.sequence",)
 STOP_WAIT_S = 10.0  # how long a stopped process may take to clean up before SIGKILL
