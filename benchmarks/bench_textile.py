@@ -107,8 +107,9 @@ DRAPE = dict(radius=0.15, pedestal=0.09, density=0.2, bending_length=0.03, stret
              shear=50.0, damping=0.05, fps=60, seconds=3.0)
 
 
-def drape(kind, spacing):
-    """(positions, faces, drape coefficient, folds, wall s) of the Cusick test on one mesh."""
+def drape(kind, spacing, **material):
+    """(positions, faces, drape coefficient, folds, wall s, largest speed) of the Cusick test on
+    one mesh; ``material``: keys that replace or add to DRAPE's."""
     from clothtool.sim.config import load_config
     from clothtool.sim.methods import make_integrator
     from clothtool.sim.textile import disc, drape_coefficient, specimen_model
@@ -120,7 +121,8 @@ def drape(kind, spacing):
     with tempfile.TemporaryDirectory() as tmp:
         model = specimen_model(uv, faces, held, {
             "density": d["density"], "bending_length": d["bending_length"],
-            "stretch": d["stretch"], "shear": d["shear"], "damping": d["damping"]}, tmp)
+            "stretch": d["stretch"], "shear": d["shear"], "damping": d["damping"],
+            **material}, tmp)
     solver = load_config({"mesh": {"grid": {}}, "solver": {"tolerance": 1e-3}}).solver
     integrator = make_integrator(model, solver, 1.0 / d["fps"])
     state = model.initial_state()
