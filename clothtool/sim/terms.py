@@ -11,8 +11,8 @@ reaches every method built on it.
 
 - :class:`Membrane`: Baraff–Witkin stretch and shear (Kim 2020, :mod:`clothtool.sim.membrane`),
   per-triangle stiffnesses;
-- :class:`NodalMembrane`: the same densities on each vertex's smoothed deformation gradient
-  (NS-FEM, :mod:`clothtool.sim.membrane_nodal`), the ``material.membrane_model: nodal`` choice;
+- :class:`NodalMembrane`: the same densities on each vertex's smoothed metric FᵀF
+  (node-based smoothing, :mod:`clothtool.sim.membrane_nodal`), the ``material.membrane_model: nodal`` choice;
 - :class:`PlateBending`, :class:`DihedralBending`, :class:`QuadraticBending`: the
   ``material.bend_model`` choices (:mod:`clothtool.sim.plate`, :mod:`clothtool.sim.bending`);
 - :class:`Stitch`: W = ½ Σ_s k_s ‖x_a − x_b‖², seam pairs pulled together while a garment
@@ -66,24 +66,23 @@ class Membrane(Term):
 
 
 class NodalMembrane(Term):
-    """Σ_v A_v Ψ(F_v), F_v the deformation gradient averaged over vertex v's third of its
-    triangles; its stencils couple a vertex with its two-ring."""
+    """Σ_v A_v Ψ(C_v), C_v the metric FᵀF averaged over vertex v's third of its triangles;
+    its stencils couple a vertex with its two-ring."""
 
     def __init__(self, faces, dr_inv, area, n, stretch, shear):
-        (self.ptr, self.index, self.a, self.b, self.cell, self.stretch,
-         self.shear) = nodal_operator(faces, dr_inv, area, n, stretch, shear)
-        self.elements = nodal_pairs(self.ptr, self.index)
+        self.faces, self.dr_inv = faces, dr_inv
+        self.operator = nodal_operator(faces, dr_inv, area, n, stretch, shear)
+        self.elements = nodal_pairs(*self.operator[:2])
 
     def bind(self, pattern):
         self.slots = pattern.slots(self.elements)[:, 1]
 
     def energy(self, x):
-        return nodal_energy(x, self.ptr, self.index, self.a, self.b, self.cell, self.stretch,
-                            self.shear)
+        return nodal_energy(x, self.faces, self.dr_inv, *self.operator)
 
     def assemble(self, x, grad, values):
-        return nodal_assemble(x, self.ptr, self.index, self.a, self.b, self.cell, self.stretch,
-                              self.shear, True, self.slots, grad, values)
+        return nodal_assemble(x, self.faces, self.dr_inv, *self.operator, True, self.slots,
+                              grad, values)
 
 
 class PlateBending(Term):
