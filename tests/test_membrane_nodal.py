@@ -159,9 +159,11 @@ def test_the_config_key_selects_the_term(tmp_path):
     cfg = load_config({"mesh": {"grid": {"nx": 4, "ny": 4}},
                        "material": {"membrane_model": "nodal"}})
     model = build_model(cfg)
-    assert isinstance(model.terms[0], NodalMembrane)
+    assert isinstance(model.terms[0], NodalMembrane)  # the stretch; the shear per triangle
+    assert np.all(model.terms[0].operator[-1] == 0.0) and np.all(model.terms[1].stretch[:, :2] == 0)
     x = model.mesh.positions * np.array([1.01, 1.0, 1.0])
-    assert model.terms[0].energy(x) == pytest.approx(
+    x[:, 1] += 0.01 * x[:, 0]  # sheared too
+    assert model.terms[0].energy(x) + model.terms[1].energy(x) == pytest.approx(
         membrane_total_energy(x, model.faces, model.dr_inv, model.area, model.tri_stretch,
                               model.tri_shear), rel=1e-10)
 
@@ -197,3 +199,10 @@ def test_a_sheet_folded_along_a_mesh_line_stores_nothing(angle):
     x[right, 2] = uv[right, 0] * np.sin(t)
     energy, grad, _ = assemble(op, pattern, slots, x, True)
     assert energy == pytest.approx(0.0, abs=1e-20) and np.abs(grad).max() < 1e-12
+
+
+def test_other_methods_than_implicit_are_refused():
+    cfg = load_config({"mesh": {"grid": {"nx": 4, "ny": 4}}, "solver": {"method": "vbd"},
+                       "material": {"membrane_model": "nodal"}})
+    with pytest.raises(InputError, match="solver.method"):
+        build_model(cfg)

@@ -262,6 +262,10 @@ class ModelBuilder:
             if self.mesh.uv is None:
                 raise InputError("material.membrane_model: 'nodal' needs one rest pattern per "
                                  "vertex (a grid, or a PLY with uv); use 'triangle'")
+            method = None if self.config is None else self.config.solver.method
+            if method not in (None, "implicit"):
+                raise InputError(f"material.membrane_model: 'nodal' works with solver.method "
+                                 f"implicit, not {method!r}; use 'triangle'")
             if not (np.any(self.tri_stretch[:, :2] > 0.0) or np.any(self.tri_shear > 0.0)):
                 return "triangle"
         return model
@@ -311,8 +315,12 @@ def _elastic_terms(faces, dr_inv, area, stretch, shear, bend_model, plate, n, hi
                    coef, weights, membrane_model="triangle"):
     """The membrane and bending terms (none whose stiffness is zero)."""
     terms = []
-    if membrane_model == "nodal":
-        terms.append(NodalMembrane(faces, dr_inv, area, n, stretch, shear))
+    if membrane_model == "nodal":  # stretch on the vertices' smoothed metric, shear per triangle
+        terms.append(NodalMembrane(faces, dr_inv, area, n, stretch, np.zeros_like(shear)))
+        if np.any(shear > 0.0):
+            shear_only = stretch.copy()
+            shear_only[:, :2] = 0.0
+            terms.append(Membrane(faces, dr_inv, area, shear_only, shear))
     elif np.any(stretch[:, :2] > 0.0) or np.any(shear > 0.0):
         terms.append(Membrane(faces, dr_inv, area, stretch, shear))
     if bend_model == "hessian":

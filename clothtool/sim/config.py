@@ -134,9 +134,9 @@ class Material(Section):
     ``stretch`` and ``rest_stretch`` are a number or [along u (warp), along v (weft)];
     ``rest_stretch`` holds Baraff–Witkin's rest length factors b_u, b_v. ``bending_length``
     c (m, the cantilever test's) may replace ``bend``: k_b = ρ g c³ with g = 9.81 m/s².
-    ``membrane_model``: stretch and shear per ``triangle`` (linear elements) or ``nodal``
-    (each vertex's smoothed deformation gradient, which does not lock when the sheet bends
-    off the mesh's lines; implicit method only).
+    ``membrane_model``: stretch and shear per ``triangle`` (linear elements), or ``nodal``:
+    warp and weft stretch on each vertex's smoothed metric FᵀF (which does not lock when the
+    sheet bends off the mesh's lines) and shear per triangle; implicit method only.
     """
 
     density: float = setting(0.2, positive)

@@ -1,5 +1,7 @@
 """Node-based smoothed membrane: Baraff–Witkin stretch and shear on each vertex's smoothed
-strain, so that the sheet bends along any line without stretching.
+strain, so that the sheet bends along any line without stretching. ``material.membrane_model:
+nodal`` puts the stiff warp and weft stretch here and keeps the soft shear on the triangles
+(:mod:`clothtool.sim.membrane`): a selective smoothing of the part that locks.
 
 The smoothing is that of the node-based smoothed finite element method (NS-FEM: G. R. Liu,
 T. Nguyen-Thoi, H. Nguyen-Xuan, K. Y. Lam, "A node-based smoothed finite element method

@@ -11,8 +11,9 @@ reaches every method built on it.
 
 - :class:`Membrane`: Baraff–Witkin stretch and shear (Kim 2020, :mod:`clothtool.sim.membrane`),
   per-triangle stiffnesses;
-- :class:`NodalMembrane`: the same densities on each vertex's smoothed metric FᵀF
-  (node-based smoothing, :mod:`clothtool.sim.membrane_nodal`), the ``material.membrane_model: nodal`` choice;
+- :class:`NodalMembrane`: the stretch density on each vertex's smoothed metric FᵀF
+  (node-based smoothing, :mod:`clothtool.sim.membrane_nodal`; ``material.membrane_model:
+  nodal``, beside a shear-only :class:`Membrane`);
 - :class:`PlateBending`, :class:`DihedralBending`, :class:`QuadraticBending`: the
   ``material.bend_model`` choices (:mod:`clothtool.sim.plate`, :mod:`clothtool.sim.bending`);
 - :class:`Stitch`: W = ½ Σ_s k_s ‖x_a − x_b‖², seam pairs pulled together while a garment
