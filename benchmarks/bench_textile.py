@@ -170,9 +170,9 @@ def drape_rows(out_dir):
         for spacing in (0.01, 0.0075):
             values = [float(r["drape coefficient"]) for r in mine
                       if r["spacing mm"] == spacing * 1000]
+            spread = 100 * (max(values) - min(values)) / np.mean(values)
             rows.append({"membrane": membrane, "mesh": "spread (max − min)/mean",
-                         "spacing mm": spacing * 1000,
-                         "drape coefficient": f"{100 * (max(values) - min(values)) / np.mean(values):.2f} %"})
+                         "spacing mm": spacing * 1000, "drape coefficient": f"{spread:.2f} %"})
         for kind in ("grid", "rot45", "delaunay"):
             values = [float(r["drape coefficient"]) for r in mine if r["mesh"] == kind]
             rows.append({"membrane": membrane, "mesh": f"{kind}: 10 → 7.5 mm",

@@ -32,8 +32,8 @@ Hessian: with J_c = ∂C_c/∂x (c = 00, 11, 01) and Ψ_c = ∂Ψ/∂C_c,
     M = [[2Ψ₀₀, Ψ₀₁], [Ψ₀₁, 2Ψ₁₁]],
 
 α_t, β_t the triangle's shape-function gradients (f0 = Σ α_a x_a, f1 = Σ β_a x_a);
-∂²Ψ/∂C² is diagonal (k_u b_u/(4C₀₀^{3/2}), k_v b_v/(4C₁₁^{3/2}), k_h), so the first part is
-PSD, and the projected Hessian clamps M's eigenvalues at zero (M is PSD in tension). It couples
+∂²Ψ/∂C² is diagonal (k_u b_u/(4C₀₀^{3/2}), k_v b_v/(4C₁₁^{3/2}), k_h), so the first
+part is PSD, and the projected Hessian clamps M's eigenvalues at zero (M is PSD in tension). It couples
 a vertex with its two-ring.
 """
 
@@ -62,10 +62,12 @@ def nodal_operator(faces, dr_inv, area, n_vertices, stretch, shear):
     vertex = faces.ravel()  # (M·3,): the cell each triangle corner lies in
     order = np.argsort(vertex, kind="stable")
     tri = (order // 3).astype(np.int64)
-    tri_ptr = np.concatenate([[0], np.cumsum(np.bincount(vertex, minlength=n_vertices))]).astype(np.int64)
+    tri_ptr = np.concatenate([[0], np.cumsum(np.bincount(vertex, minlength=n_vertices))])
+    tri_ptr = tri_ptr.astype(np.int64)
     owners = vertex[order]
     weight = third[tri] / cell[owners]
-    local = (np.searchsorted(key, owners[:, None] * n_vertices + faces[tri]) - ptr[owners][:, None]).astype(np.int64)
+    local = np.searchsorted(key, owners[:, None] * n_vertices + faces[tri]) - ptr[owners][:, None]
+    local = local.astype(np.int64)
     w = np.where(cell > 0.0, cell, 1.0)
     mat_stretch = np.stack([np.bincount(vertex, np.repeat(third * stretch[:, c], 3),
                                         minlength=n_vertices) / w for c in range(4)], axis=1)
@@ -167,7 +169,7 @@ def nodal_assemble(x, faces, dr_inv, ptr, index, tri_ptr, tri, weight, local, ce
                     for p in range(3):
                         for q in range(3):
                             block[p, q] += s * jac[r, cc, p] * jac[c, cc, q]
-        # the geometric part Σ_t w (α, β) M (α, β)ᵀ ⊗ I₃, M clamped to PSD when projecting
+        # the geometric part Σ_t w (α, β) M (α, β)ᵀ ⊗ I₃, M clamped to PSD with ``project``
         m00, m11, m01 = 2.0 * psi[0], 2.0 * psi[1], psi[2]
         if project:
             half = 0.5 * (m00 - m11)
