@@ -135,7 +135,7 @@ class Material(Section):
     ``rest_stretch`` holds Baraff–Witkin's rest length factors b_u, b_v. ``bending_length``
     c (m, the cantilever test's) may replace ``bend``: k_b = ρ g c³ with g = 9.81 m/s².
     ``membrane_model``: stretch and shear per ``triangle`` (linear elements), or ``nodal``:
-    warp and weft stretch on each vertex's smoothed metric FᵀF (which does not lock when the
+    warp and weft stretch on each vertex's smoothed metric FᵀF (which locks less when the
     sheet bends off the mesh's lines) and shear per triangle; implicit method only.
     """
 
