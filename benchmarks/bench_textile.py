@@ -194,7 +194,7 @@ def _plot_drape(shown, path):
         ax = fig.add_subplot(2, 3, k + 1, projection="3d")
         ax.plot_trisurf(x[:, 0], x[:, 1], x[:, 2], triangles=faces, cmap="viridis",
                         linewidth=0.1, edgecolor=(0, 0, 0, 0.15))
-        ax.set_title(f"{membrane} membrane, {kind}: drape coefficient {dc:.3f}")
+        ax.set_title(f"{membrane} membrane, {kind}\ndrape coefficient {dc:.3f}")
         ax.set_box_aspect((1, 1, 0.5))
         ax.view_init(elev=35, azim=30)
         ax.set_axis_off()
