@@ -6,13 +6,15 @@ Writes ``bench-results/textile.md`` and ``textile_drape.png``:
 
 - cantilever (ASTM D1388): tip drop against the elastica at overhangs of 1, 2 and 3
   bending lengths, strips along and across a grid, at 45° to one and on a Delaunay mesh,
-  at 20 and 40 divisions along the strip, for the ``hessian`` and ``dihedral`` models
-  (static equilibrium, :mod:`clothtool.sim.statics`);
+  at 20 and 40 divisions along the strip, for the ``hessian`` bending with the ``triangle``
+  and ``nodal`` membranes and for ``dihedral`` (static equilibrium, :mod:`clothtool.sim.statics`);
 - hanging strips along warp, weft and bias against ρgL²/(2k) (k along the bias from
-  :func:`clothtool.sim.textile.bias_modulus`);
+  :func:`clothtool.sim.textile.bias_modulus`), with each membrane model;
 - Cusick drape (BS 5058: a 30 cm disc on an 18 cm pedestal): the drape coefficient on a
-  grid, the grid turned 45° and a Delaunay mesh at two spacings, simulated to rest with the
-  implicit method (a 6-fold ripple of 2 mm seeds the folds alike on every mesh);
+  grid, the grid turned 45° and a Delaunay mesh at two spacings, with each membrane model,
+  simulated to rest with the implicit method (a 6-fold ripple of 2 mm seeds the folds alike
+  on every mesh);
+- the membrane models' cost: ms/step of the 64×64 hanging sheet, alternating in one run;
 - cost: the 64×64 hanging sheet (sample_data/hanging_sheet.yaml) at one step per frame, CPU
   ms per step with bending and with ``bend: 0``, in this checkout and in a clone of the
   commit before the plate model (``BASE`` below, made with ``git clone``); bending's share
@@ -44,12 +46,14 @@ def cantilever_rows():
 
     length, width, density = 0.1, 0.025, 0.2
     rows = []
-    for model_name in ("hessian", "dihedral"):
+    for model_name, membrane in (("hessian", "triangle"), ("hessian", "nodal"),
+                                 ("dihedral", "triangle")):
         for kind in ("grid", "across", "rot45", "delaunay"):
             for divisions in (20, 40):
                 uv, faces, held = strip(length, width, length / divisions, kind)
                 tip = np.flatnonzero(uv[:, 0] >= length - 1e-9)
-                row = {"model": model_name, "mesh": kind, "divisions": divisions,
+                row = {"model": model_name, "membrane": membrane, "mesh": kind,
+                       "divisions": divisions,
                        "vertices": len(uv)}
                 started = time.perf_counter()
                 for overhang in (1, 2, 3):
@@ -57,7 +61,8 @@ def cantilever_rows():
                     with tempfile.TemporaryDirectory() as tmp:
                         model = specimen_model(uv, faces, held, {
                             "density": density, "bend": bend, "stretch": 5000.0, "shear": 50.0,
-                            "damping": 0.0, "bend_model": model_name}, tmp)
+                            "damping": 0.0, "bend_model": model_name,
+                            "membrane_model": membrane}, tmp)
                     try:
                         x = static_equilibrium(model)
                     except NumericalError as exc:
@@ -79,7 +84,8 @@ def hanging_rows():
 
     length, width, density, k_u, k_v, k_h = 0.4, 0.01, 0.2, 1000.0, 3000.0, 50.0
     rows = []
-    for spacing in (0.0025, 0.00125):
+    for membrane, spacing in (("triangle", 0.0025), ("triangle", 0.00125), ("nodal", 0.0025),
+                              ("nodal", 0.00125)):
         uv, faces, _ = strip(length, width, spacing, "grid", clamp=False)
         top = np.flatnonzero(uv[:, 0] <= 1e-12)
         tip = np.flatnonzero(uv[:, 0] >= length - 1e-12)
@@ -90,11 +96,13 @@ def hanging_rows():
             with tempfile.TemporaryDirectory() as tmp:
                 model = specimen_model(uv @ turn.T, faces, top, {
                     "density": density, "stretch": [k_u, k_v], "shear": k_h, "bend": 1e-6,
-                    "damping": 0.0}, tmp, gravity=(G * c, G * s, 0.0))
+                    "damping": 0.0, "membrane_model": membrane}, tmp,
+                    gravity=(G * c, G * s, 0.0))
             x = static_equilibrium(model)
             extension = (x[tip, :2] @ turn[:, 0]).mean() - length
             closed = density * G * length ** 2 / (2 * k)
-            rows.append({"direction": direction, "spacing mm": spacing * 1000,
+            rows.append({"membrane": membrane, "direction": direction,
+                         "spacing mm": spacing * 1000,
                          "k along the strip N/m": f"{k:.1f}",
                          "extension mm": f"{1000 * extension:.4f}",
                          "ρgL²/(2k) mm": f"{1000 * closed:.4f}",
@@ -107,8 +115,9 @@ DRAPE = dict(radius=0.15, pedestal=0.09, density=0.2, bending_length=0.03, stret
              shear=50.0, damping=0.05, fps=60, seconds=3.0)
 
 
-def drape(kind, spacing):
-    """(positions, faces, drape coefficient, folds, wall s) of the Cusick test on one mesh."""
+def drape(kind, spacing, **material):
+    """(positions, faces, drape coefficient, folds, wall s, largest speed) of the Cusick test on
+    one mesh; ``material``: keys that replace or add to DRAPE's."""
     from clothtool.sim.config import load_config
     from clothtool.sim.methods import make_integrator
     from clothtool.sim.textile import disc, drape_coefficient, specimen_model
@@ -120,7 +129,8 @@ def drape(kind, spacing):
     with tempfile.TemporaryDirectory() as tmp:
         model = specimen_model(uv, faces, held, {
             "density": d["density"], "bending_length": d["bending_length"],
-            "stretch": d["stretch"], "shear": d["shear"], "damping": d["damping"]}, tmp)
+            "stretch": d["stretch"], "shear": d["shear"], "damping": d["damping"],
+            **material}, tmp)
     solver = load_config({"mesh": {"grid": {}}, "solver": {"tolerance": 1e-3}}).solver
     integrator = make_integrator(model, solver, 1.0 / d["fps"])
     state = model.initial_state()
@@ -141,25 +151,32 @@ def drape(kind, spacing):
 
 def drape_rows(out_dir):
     rows, shown = [], {}
-    drape("grid", 0.02)  # compile the kernels outside the timings
-    for spacing in (0.01, 0.0075):
+    drape("grid", 0.02, bend_model="hessian", membrane_model="nodal")  # compile the kernels
+    drape("grid", 0.02, bend_model="hessian")
+    for membrane in ("triangle", "nodal"):
+        for spacing in (0.01, 0.0075):
+            for kind in ("grid", "rot45", "delaunay"):
+                x, faces, dc, folds, wall, speed = drape(kind, spacing, bend_model="hessian",
+                                                         membrane_model=membrane)
+                rows.append({"membrane": membrane, "mesh": kind, "spacing mm": spacing * 1000,
+                             "vertices": len(x), "drape coefficient": f"{dc:.4f}",
+                             "folds": folds, "largest speed at the end mm/s": f"{1000 * speed:.2f}",
+                             "wall s": f"{wall:.1f}"})
+                print("  drape", rows[-1], flush=True)
+                if spacing == 0.0075:
+                    shown[(membrane, kind)] = (x, faces, dc)
+    for membrane in ("triangle", "nodal"):
+        mine = [r for r in rows if r.get("membrane") == membrane and "vertices" in r]
+        for spacing in (0.01, 0.0075):
+            values = [float(r["drape coefficient"]) for r in mine
+                      if r["spacing mm"] == spacing * 1000]
+            spread = 100 * (max(values) - min(values)) / np.mean(values)
+            rows.append({"membrane": membrane, "mesh": "spread (max − min)/mean",
+                         "spacing mm": spacing * 1000, "drape coefficient": f"{spread:.2f} %"})
         for kind in ("grid", "rot45", "delaunay"):
-            x, faces, dc, folds, wall, speed = drape(kind, spacing)
-            rows.append({"mesh": kind, "spacing mm": spacing * 1000, "vertices": len(x),
-                         "drape coefficient": f"{dc:.4f}", "folds": folds,
-                         "largest speed at the end mm/s": f"{1000 * speed:.2f}",
-                         "wall s": f"{wall:.1f}"})
-            print("  drape", rows[-1], flush=True)
-            if spacing == 0.0075:
-                shown[kind] = (x, faces, dc)
-    for spacing in (0.01, 0.0075):
-        values = [float(r["drape coefficient"]) for r in rows if r["spacing mm"] == spacing * 1000]
-        rows.append({"mesh": "spread (max − min)/mean", "spacing mm": spacing * 1000,
-                     "drape coefficient": f"{100 * (max(values) - min(values)) / np.mean(values):.2f} %"})
-    for kind in ("grid", "rot45", "delaunay"):
-        values = [float(r["drape coefficient"]) for r in rows if r["mesh"] == kind]
-        rows.append({"mesh": f"{kind}: 10 → 7.5 mm",
-                     "drape coefficient": f"{100 * (values[1] / values[0] - 1):+.2f} %"})
+            values = [float(r["drape coefficient"]) for r in mine if r["mesh"] == kind]
+            rows.append({"membrane": membrane, "mesh": f"{kind}: 10 → 7.5 mm",
+                         "drape coefficient": f"{100 * (values[1] / values[0] - 1):+.2f} %"})
     _plot_drape(shown, out_dir / "textile_drape.png")
     return rows
 
@@ -172,12 +189,12 @@ def _plot_drape(shown, path):
     except ImportError:
         print("  matplotlib not installed: no drape picture (pip install 'clothtool[bench]')")
         return
-    fig = plt.figure(figsize=(12, 4.4))
-    for k, (kind, (x, faces, dc)) in enumerate(shown.items()):
-        ax = fig.add_subplot(1, len(shown), k + 1, projection="3d")
+    fig = plt.figure(figsize=(12, 8.4))
+    for k, ((membrane, kind), (x, faces, dc)) in enumerate(shown.items()):
+        ax = fig.add_subplot(2, 3, k + 1, projection="3d")
         ax.plot_trisurf(x[:, 0], x[:, 1], x[:, 2], triangles=faces, cmap="viridis",
                         linewidth=0.1, edgecolor=(0, 0, 0, 0.15))
-        ax.set_title(f"{kind}: drape coefficient {dc:.3f}")
+        ax.set_title(f"{membrane} membrane, {kind}\ndrape coefficient {dc:.3f}")
         ax.set_box_aspect((1, 1, 0.5))
         ax.view_init(elev=35, azim=30)
         ax.set_axis_off()
@@ -194,9 +211,11 @@ from clothtool.sim.config import load_config
 from clothtool.sim.methods import make_integrator
 from clothtool.sim.builder import build_model
 bend, frames, bend_model = float(sys.argv[2]), int(sys.argv[3]), sys.argv[4]
-cfg = load_config(sys.argv[1] + "/sample_data/hanging_sheet.yaml", overrides={
-    "mesh.grid.nx": 64, "mesh.grid.ny": 64, "material.bend": bend,
-    "material.bend_model": bend_model})
+overrides = {"mesh.grid.nx": 64, "mesh.grid.ny": 64, "material.bend": bend,
+             "material.bend_model": bend_model}
+if len(sys.argv) > 5:
+    overrides["material.membrane_model"] = sys.argv[5]
+cfg = load_config(sys.argv[1] + "/sample_data/hanging_sheet.yaml", overrides=overrides)
 model = build_model(cfg)
 integ = make_integrator(model, cfg.solver, cfg.step)
 state = model.initial_state()
@@ -246,6 +265,30 @@ def cost_rows(repeat=3, frames=20):
     return rows
 
 
+def membrane_cost_rows(repeat=3, frames=20):
+    """ms/step of the 64×64 hanging sheet (hessian bending) with each membrane model,
+    alternating in one run."""
+    runs = {}
+    for _ in range(repeat):
+        for membrane in ("triangle", "nodal"):
+            out = subprocess.run([sys.executable, "-c", COST_SCRIPT, str(HERE), "1e-5",
+                                  str(frames), "hessian", membrane], capture_output=True,
+                                 text=True, check=True, cwd=HERE,
+                                 env={**os.environ, "PYTHONPATH": str(HERE)})
+            ms, newton, cg, nnzb = out.stdout.split()
+            runs.setdefault(membrane, []).append((float(ms), float(newton), float(cg), int(nnzb)))
+    rows = []
+    for membrane, r in runs.items():
+        rows.append({"membrane": membrane, "ms/step": f"{statistics.median(x[0] for x in r):.1f}",
+                     "Newton/step": f"{r[0][1]:.2f}", "PCG/step": f"{r[0][2]:.1f}",
+                     "matrix blocks": r[0][3]})
+    ratio = (statistics.median(x[0] for x in runs["nodal"])
+             / statistics.median(x[0] for x in runs["triangle"]))
+    rows.append({"membrane": "nodal / triangle", "ms/step": f"{ratio:.2f}×"})
+    print("  membrane cost", rows, flush=True)
+    return rows
+
+
 def run(out_dir):
     out_dir = Path(out_dir)
     sections = []
@@ -254,6 +297,10 @@ def run(out_dir):
     sections.append("### Cost: 64×64 hanging sheet, one step per frame\n\nCPU ms per step "
                     "(median of 20 steps, 3 alternating runs each; bending's share = with − "
                     "without bending):\n\n" + markdown_table(cost, list(cost[0])))
+    membrane_cost = membrane_cost_rows()
+    sections.append("### Cost of the membrane models: 64×64 hanging sheet, hessian bending\n\n"
+                    "CPU ms per step (median of 20 steps, 3 alternating runs each):\n\n"
+                    + markdown_table(membrane_cost, list(membrane_cost[0])))
     cant = cantilever_rows()
     sections.append("### Cantilever (ASTM D1388) against the elastica\n\n0.1 m × 25 mm strip, "
                     "0.2 kg/m², stretch 5000 N/m, shear 50 N/m, bending length 0.1/n m for an "
@@ -264,11 +311,11 @@ def run(out_dir):
                     "stretch [1000, 3000] N/m, shear 50 N/m, top edge pinned.\n\n"
                     + markdown_table(hang, list(hang[0])))
     dr = drape_rows(out_dir)
-    cols = ["mesh", "spacing mm", "vertices", "drape coefficient", "folds",
+    cols = ["membrane", "mesh", "spacing mm", "vertices", "drape coefficient", "folds",
             "largest speed at the end mm/s", "wall s"]
     sections.append("### Cusick drape (BS 5058)\n\n30 cm disc, 18 cm pedestal, 0.2 kg/m², "
-                    "bending length 3 cm, stretch 5000 N/m, shear 50 N/m, damping 0.05 s, 3 s at "
-                    "60 fps (implicit, BDF2); picture: textile_drape.png.\n\n"
+                    "hessian bending, bending length 3 cm, stretch 5000 N/m, shear 50 N/m, "
+                    "damping 0.05 s, 3 s at 60 fps (implicit, BDF2); picture: textile_drape.png.\n\n"
                     + markdown_table(dr, cols))
     text = "## Textile tests\n\n`python -m benchmarks textile`\n\n" + "\n".join(sections)
     (out_dir / "textile.md").write_text(text)

@@ -48,6 +48,7 @@ material:
   damping: 0.01         # s, stiffness-proportional damping; 0 = none
   bend_model: dihedral  # dihedral (angle-based), hessian (plate: the stated rigidity on any mesh) or quadratic
   bending_length: null  # m, instead of bend: the cantilever test's c, bend = density · 9.81 · c³
+  membrane_model: triangle  # triangle, or nodal (stretch smoothed per vertex: drapes alike on any mesh)
   # stiffnesses are per unit area (energy density integrated over the rest area), so
   # refining the mesh converges to the same shape instead of changing it
 

@@ -22,8 +22,8 @@ from clothtool.sim.methods import barrier_contact
 from clothtool.sim.model import Model
 from clothtool.sim.motion import resolve_pin_entries
 from clothtool.sim.schema import suggest
-from clothtool.sim.terms import (DihedralBending, Membrane, PlateBending, QuadraticBending,
-                                 Stitch, Term)
+from clothtool.sim.terms import (DihedralBending, Membrane, NodalMembrane, PlateBending,
+                                 QuadraticBending, Stitch, Term)
 
 DEGENERATE = 1e-12  # rest triangle area relative to its squared longest edge
 
@@ -218,8 +218,10 @@ class ModelBuilder:
             q = hessian_bending_matrix(mesh.uv, faces) * self.tri_bend[0]
             plate = (q.indptr.astype(np.int64), q.indices.astype(np.int64), q.data)
         terms = []
+        membrane_model = self._membrane_model()
         terms = _elastic_terms(faces, dr_inv, self.area, self.tri_stretch, self.tri_shear,
-                               bend_model, plate, n, hinge, rest_angle, coef, weights)
+                               bend_model, plate, n, hinge, rest_angle, coef, weights,
+                               membrane_model)
         if len(self.stitches):
             terms.append(Stitch(self.stitches, self.stitch_stiffness))
         pattern = BlockPattern(n, *[t.elements for t in terms])
@@ -232,7 +234,7 @@ class ModelBuilder:
             damping_terms = _elastic_terms(faces, dr_inv, self.area, scaled,
                                            self.tri_shear * beta, bend_model, None, n, hinge,
                                            rest_angle, coef * beta[hinge_faces].mean(axis=1),
-                                           weights)
+                                           weights, membrane_model)
             damping_constant = _bind(damping_terms, pattern)
         hinged = bend_model in ("dihedral", "quadratic")
         return Model(
@@ -252,6 +254,21 @@ class ModelBuilder:
             origin=self.origin, file_vertex=self.file_vertex,
             damping_terms=damping_terms, damping_constant=damping_constant,
         )
+
+    def _membrane_model(self):
+        """``material.membrane_model``; ``nodal`` (and ``triangle`` when the membrane is off)."""
+        model = self.material.membrane_model
+        if model == "nodal":
+            if self.mesh.uv is None:
+                raise InputError("material.membrane_model: 'nodal' needs one rest pattern per "
+                                 "vertex (a grid, or a PLY with uv); use 'triangle'")
+            method = None if self.config is None else self.config.solver.method
+            if method not in (None, "implicit"):
+                raise InputError(f"material.membrane_model: 'nodal' works with solver.method "
+                                 f"implicit, not {method!r}; use 'triangle'")
+            if not (np.any(self.tri_stretch[:, :2] > 0.0) or np.any(self.tri_shear > 0.0)):
+                return "triangle"
+        return model
 
     def _bending(self):
         """(model, hinges, rest angles, c_h, quadratic weights): c_h = k_b ‖ē‖²/(2(Ā_k + Ā_l)),
@@ -295,10 +312,16 @@ class ModelBuilder:
 
 
 def _elastic_terms(faces, dr_inv, area, stretch, shear, bend_model, plate, n, hinge, rest_angle,
-                   coef, weights):
+                   coef, weights, membrane_model="triangle"):
     """The membrane and bending terms (none whose stiffness is zero)."""
     terms = []
-    if np.any(stretch[:, :2] > 0.0) or np.any(shear > 0.0):
+    if membrane_model == "nodal":  # stretch on the vertices' smoothed metric, shear per triangle
+        terms.append(NodalMembrane(faces, dr_inv, area, n, stretch, np.zeros_like(shear)))
+        if np.any(shear > 0.0):
+            shear_only = stretch.copy()
+            shear_only[:, :2] = 0.0
+            terms.append(Membrane(faces, dr_inv, area, shear_only, shear))
+    elif np.any(stretch[:, :2] > 0.0) or np.any(shear > 0.0):
         terms.append(Membrane(faces, dr_inv, area, stretch, shear))
     if bend_model == "hessian":
         terms.append(PlateBending(plate, n))

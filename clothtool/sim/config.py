@@ -31,6 +31,7 @@ __all__ = ["load_config", "as_dict", "Config", "SECTIONS", "COLLIDER_KINDS"]
 
 PLANES = ("xy", "xz", "yz")
 BEND_MODELS = ("hessian", "dihedral", "quadratic")
+MEMBRANE_MODELS = ("triangle", "nodal")
 STANDARD_GRAVITY = 9.81  # m/s², of bending_length → bend (k_b = ρ g c³)
 METHODS = tuple(methods.METHODS)
 PRECONDITIONERS = ("jacobi", "multigrid")
@@ -133,6 +134,9 @@ class Material(Section):
     ``stretch`` and ``rest_stretch`` are a number or [along u (warp), along v (weft)];
     ``rest_stretch`` holds Baraff–Witkin's rest length factors b_u, b_v. ``bending_length``
     c (m, the cantilever test's) may replace ``bend``: k_b = ρ g c³ with g = 9.81 m/s².
+    ``membrane_model``: stretch and shear per ``triangle`` (linear elements), or ``nodal``:
+    warp and weft stretch on each vertex's smoothed metric FᵀF (which locks less when the
+    sheet bends off the mesh's lines) and shear per triangle; implicit method only.
     """
 
     density: float = setting(0.2, positive)
@@ -143,6 +147,7 @@ class Material(Section):
     damping: float = setting(0.01, non_negative)
     bend_model: str = setting("dihedral", choice(BEND_MODELS))
     bending_length: float | None = setting(None, positive)
+    membrane_model: str = setting("triangle", choice(MEMBRANE_MODELS))
 
     def finish(self, given, key):
         """``bend`` = ρ g c³ from ``bending_length`` c and ``density`` ρ (not both bend and c)."""

@@ -11,6 +11,9 @@ reaches every method built on it.
 
 - :class:`Membrane`: Baraff–Witkin stretch and shear (Kim 2020, :mod:`clothtool.sim.membrane`),
   per-triangle stiffnesses;
+- :class:`NodalMembrane`: the stretch density on each vertex's smoothed metric FᵀF
+  (node-based smoothing, :mod:`clothtool.sim.membrane_nodal`; ``material.membrane_model:
+  nodal``, beside a shear-only :class:`Membrane`);
 - :class:`PlateBending`, :class:`DihedralBending`, :class:`QuadraticBending`: the
   ``material.bend_model`` choices (:mod:`clothtool.sim.plate`, :mod:`clothtool.sim.bending`);
 - :class:`Stitch`: W = ½ Σ_s k_s ‖x_a − x_b‖², seam pairs pulled together while a garment
@@ -24,6 +27,7 @@ from clothtool.sim.bending import (dihedral_assemble, dihedral_total_energy,
                                    quadratic_gradient)
 from clothtool.sim.linalg.blocks import scatter_blocks
 from clothtool.sim.membrane import membrane_assemble, membrane_total_energy
+from clothtool.sim.membrane_nodal import nodal_assemble, nodal_energy, nodal_operator, nodal_pairs
 from clothtool.sim.plate import hessian_gradient
 
 NO_GRADIENT = np.zeros((0, 3))  # the energy-only call of the kernels that take a gradient
@@ -60,6 +64,26 @@ class Membrane(Term):
     def assemble(self, x, grad, values):
         return membrane_assemble(x, self.faces, self.dr_inv, self.area, self.stretch, self.shear,
                                  self.slots, grad, values)
+
+
+class NodalMembrane(Term):
+    """Σ_v A_v Ψ(C_v), C_v the metric FᵀF averaged over vertex v's third of its triangles;
+    its stencils couple a vertex with its two-ring."""
+
+    def __init__(self, faces, dr_inv, area, n, stretch, shear):
+        self.faces, self.dr_inv = faces, dr_inv
+        self.operator = nodal_operator(faces, dr_inv, area, n, stretch, shear)
+        self.elements = nodal_pairs(*self.operator[:2])
+
+    def bind(self, pattern):
+        self.slots = pattern.slots(self.elements)[:, 1]
+
+    def energy(self, x):
+        return nodal_energy(x, self.faces, self.dr_inv, *self.operator)
+
+    def assemble(self, x, grad, values):
+        return nodal_assemble(x, self.faces, self.dr_inv, *self.operator, True, self.slots,
+                              grad, values)
 
 
 class PlateBending(Term):

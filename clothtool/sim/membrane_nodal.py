@@ -1,0 +1,207 @@
+"""Node-based smoothed membrane: Baraff–Witkin stretch and shear on each vertex's smoothed
+strain, so that the sheet bends along any line without stretching. ``material.membrane_model:
+nodal`` puts the stiff warp and weft stretch here and keeps the soft shear on the triangles
+(:mod:`clothtool.sim.membrane`): a selective smoothing of the part that locks.
+
+The smoothing is that of the node-based smoothed finite element method (NS-FEM: G. R. Liu,
+T. Nguyen-Thoi, H. Nguyen-Xuan, K. Y. Lam, "A node-based smoothed finite element method
+(NS-FEM) for upper bound solutions to solid mechanics problems", Computers & Structures 87
+(2009) 14–26), applied to the metric C = FᵀF (the Green strain E = (C − I)/2) rather than to
+F. Vertex v owns a third of each triangle t around it, A_v = Σ_{t∋v} A_t/3, and
+
+    C_v = Σ_{t∋v} w_vt F_tᵀF_t,   w_vt = A_t/(3A_v),
+
+so that a sheet bent isometrically (every F_tᵀF_t = I) has C_v = I: averaging F itself would
+shorten F_v where the ring is curved and stiffen the bending. With :mod:`clothtool.sim.membrane`'s
+density written in C (‖f0‖ = √C₀₀, ‖f1‖ = √C₁₁, f0·f1 = C₀₁),
+
+    W = Σ_v A_v [k_u/2 (√C₀₀ − b_u)² + k_v/2 (√C₁₁ − b_v)² + k_h/2 C₀₁²],
+
+the materials the area-weighted means of the ring's. An affine map gives every C_t and so
+every C_v the same value (the patch test); to first order in the displacement C_v is NS-FEM's
+smoothed strain.
+
+Why: linear triangles lock. A sheet folded smoothly along a line that is no mesh line cannot
+keep its triangles' three strains zero (three conditions per triangle, about six per vertex,
+against a vertex's three coordinates), so a fabric stiff along warp and weft drapes stiffer
+on some meshes than on others. The smoothed strain sets three conditions per vertex.
+
+Hessian: with J_c = ∂C_c/∂x (c = 00, 11, 01) and Ψ_c = ∂Ψ/∂C_c,
+
+    ∇²W_v = A_v [Jᵀ (∂²Ψ/∂C²) J + Σ_t w_vt (α_t, β_t) M (α_t, β_t)ᵀ ⊗ I₃],
+    M = [[2Ψ₀₀, Ψ₀₁], [Ψ₀₁, 2Ψ₁₁]],
+
+α_t, β_t the triangle's shape-function gradients (f0 = Σ α_a x_a, f1 = Σ β_a x_a);
+∂²Ψ/∂C² is diagonal (k_u b_u/(4C₀₀^{3/2}), k_v b_v/(4C₁₁^{3/2}), k_h), so the first
+part is PSD, and the projected Hessian clamps M's eigenvalues at zero (M is PSD in tension). It couples
+a vertex with its two-ring.
+"""
+
+import numpy as np
+from numba import njit
+
+from clothtool.sim.membrane import _deformation
+from clothtool.vec3 import load
+
+EPS = 1e-12
+
+
+def nodal_operator(faces, dr_inv, area, n_vertices, stretch, shear):
+    """The smoothing cells: each vertex's stencil (ptr, index: its ring, sorted), its
+    triangles (tri_ptr, tri: CSR over vertices), their weights w_vt and their corners'
+    places in the stencil (local (K, 3)), the cell areas A_v (n,), and per-vertex materials
+    (``stretch`` (n, 4), ``shear`` (n,)) averaged over the ring by area."""
+    third = area / 3.0
+    cell = np.bincount(faces.ravel(), np.repeat(third, 3), minlength=n_vertices)
+    owner = np.repeat(faces, 3, axis=1).ravel()  # (M·9,): the cell v of each (v, j) corner pair
+    corner = np.tile(faces, (1, 3)).ravel()
+    key = np.unique(owner * n_vertices + corner)
+    index = (key % n_vertices).astype(np.int64)
+    ptr = np.concatenate([[0], np.cumsum(np.bincount(key // n_vertices,
+                                                     minlength=n_vertices))]).astype(np.int64)
+    vertex = faces.ravel()  # (M·3,): the cell each triangle corner lies in
+    order = np.argsort(vertex, kind="stable")
+    tri = (order // 3).astype(np.int64)
+    tri_ptr = np.concatenate([[0], np.cumsum(np.bincount(vertex, minlength=n_vertices))])
+    tri_ptr = tri_ptr.astype(np.int64)
+    owners = vertex[order]
+    weight = third[tri] / cell[owners]
+    local = np.searchsorted(key, owners[:, None] * n_vertices + faces[tri]) - ptr[owners][:, None]
+    local = local.astype(np.int64)
+    w = np.where(cell > 0.0, cell, 1.0)
+    mat_stretch = np.stack([np.bincount(vertex, np.repeat(third * stretch[:, c], 3),
+                                        minlength=n_vertices) / w for c in range(4)], axis=1)
+    mat_shear = np.bincount(vertex, np.repeat(third * shear, 3), minlength=n_vertices) / w
+    return ptr, index, tri_ptr, tri, weight, local, cell, mat_stretch, mat_shear
+
+
+def nodal_pairs(ptr, index):
+    """(P, 2) vertex pairs (j, k) of every stencil, row-major per stencil (the Hessian blocks)."""
+    pairs = []
+    for v in range(len(ptr) - 1):
+        s = index[ptr[v]:ptr[v + 1]]
+        pairs.append(np.stack([np.repeat(s, len(s)), np.tile(s, len(s))], axis=1))
+    return np.concatenate(pairs).astype(np.int64) if pairs else np.zeros((0, 2), np.int64)
+
+
+@njit(cache=True)
+def _metric(x, faces, dr_inv, tri_ptr, tri, weight, v):
+    """C_v = Σ_t w_vt F_tᵀF_t as (C₀₀, C₁₁, C₀₁)."""
+    c00 = c11 = c01 = 0.0
+    for e in range(tri_ptr[v], tri_ptr[v + 1]):
+        t = tri[e]
+        f0, f1, _, _ = _deformation(load(x, faces[t, 0]), load(x, faces[t, 1]),
+                                    load(x, faces[t, 2]), dr_inv[t])
+        w = weight[e]
+        c00 += w * (f0[0] * f0[0] + f0[1] * f0[1] + f0[2] * f0[2])
+        c11 += w * (f1[0] * f1[0] + f1[1] * f1[1] + f1[2] * f1[2])
+        c01 += w * (f0[0] * f1[0] + f0[1] * f1[1] + f0[2] * f1[2])
+    return c00, c11, c01
+
+
+@njit(cache=True)
+def _density(c00, c11, c01, st, kh):
+    n0 = np.sqrt(max(c00, 0.0))
+    n1 = np.sqrt(max(c11, 0.0))
+    return 0.5 * st[0] * (n0 - st[2]) ** 2 + 0.5 * st[1] * (n1 - st[3]) ** 2 + 0.5 * kh * c01 * c01
+
+
+@njit(cache=True)
+def nodal_energy(x, faces, dr_inv, ptr, index, tri_ptr, tri, weight, local, cell, stretch, shear):
+    """W = Σ_v A_v Ψ(C_v)."""
+    total = 0.0
+    for v in range(len(cell)):
+        if tri_ptr[v + 1] == tri_ptr[v]:
+            continue
+        c00, c11, c01 = _metric(x, faces, dr_inv, tri_ptr, tri, weight, v)
+        total += cell[v] * _density(c00, c11, c01, stretch[v], shear[v])
+    return total
+
+
+@njit(cache=True)
+def nodal_assemble(x, faces, dr_inv, ptr, index, tri_ptr, tri, weight, local, cell, stretch,
+                   shear, project, slots, grad, values):
+    """W(x); adds ∇W to grad (N, 3) and the Hessian blocks (PSD with ``project``, module
+    docstring) to values, stencil v's block (j, k) at ``slots[s_v + j·m_v + k]``
+    (s_v = Σ_{u<v} m_u², m_v its stencil's size; :func:`nodal_pairs`' order)."""
+    total = 0.0
+    start = 0
+    jac = np.zeros((64, 3, 3))  # J_c at each stencil vertex: (local, c, p)
+    for v in range(len(cell)):
+        lo, hi = ptr[v], ptr[v + 1]
+        m = hi - lo
+        if tri_ptr[v + 1] == tri_ptr[v]:
+            start += m * m
+            continue
+        if m > jac.shape[0]:
+            jac = np.zeros((2 * m, 3, 3))
+        jac[:m] = 0.0
+        c00 = c11 = c01 = 0.0
+        for e in range(tri_ptr[v], tri_ptr[v + 1]):
+            t = tri[e]
+            f0, f1, al, be = _deformation(load(x, faces[t, 0]), load(x, faces[t, 1]),
+                                          load(x, faces[t, 2]), dr_inv[t])
+            w = weight[e]
+            c00 += w * (f0[0] * f0[0] + f0[1] * f0[1] + f0[2] * f0[2])
+            c11 += w * (f1[0] * f1[0] + f1[1] * f1[1] + f1[2] * f1[2])
+            c01 += w * (f0[0] * f1[0] + f0[1] * f1[1] + f0[2] * f1[2])
+            for a in range(3):
+                r = local[e, a]
+                for p in range(3):
+                    jac[r, 0, p] += 2.0 * w * al[a] * f0[p]
+                    jac[r, 1, p] += 2.0 * w * be[a] * f1[p]
+                    jac[r, 2, p] += w * (al[a] * f1[p] + be[a] * f0[p])
+        st, kh, av = stretch[v], shear[v], cell[v]
+        total += av * _density(c00, c11, c01, st, kh)
+        n0 = max(np.sqrt(max(c00, 0.0)), EPS)
+        n1 = max(np.sqrt(max(c11, 0.0)), EPS)
+        psi = (0.5 * st[0] * (n0 - st[2]) / n0, 0.5 * st[1] * (n1 - st[3]) / n1, kh * c01)
+        curv = (0.25 * st[0] * st[2] / (n0 * n0 * n0), 0.25 * st[1] * st[3] / (n1 * n1 * n1), kh)
+        for r in range(m):
+            j = index[lo + r]
+            for p in range(3):
+                grad[j, p] += av * (psi[0] * jac[r, 0, p] + psi[1] * jac[r, 1, p]
+                                    + psi[2] * jac[r, 2, p])
+            for c in range(m):
+                block = values[slots[start + r * m + c]]
+                for cc in range(3):
+                    s = av * curv[cc]
+                    for p in range(3):
+                        for q in range(3):
+                            block[p, q] += s * jac[r, cc, p] * jac[c, cc, q]
+        # the geometric part Σ_t w (α, β) M (α, β)ᵀ ⊗ I₃, M clamped to PSD with ``project``
+        m00, m11, m01 = 2.0 * psi[0], 2.0 * psi[1], psi[2]
+        if project:
+            half = 0.5 * (m00 - m11)
+            root = np.sqrt(half * half + m01 * m01)
+            l1 = 0.5 * (m00 + m11) + root
+            l2 = 0.5 * (m00 + m11) - root
+            if root > 0.0:
+                ux, uy = m01, l1 - m00
+                if ux * ux + uy * uy < (l1 - m11) ** 2 + m01 * m01:
+                    ux, uy = l1 - m11, m01
+                norm = np.sqrt(ux * ux + uy * uy)
+                ux, uy = ux / norm, uy / norm
+            else:
+                ux, uy = 1.0, 0.0
+            l1, l2 = max(l1, 0.0), max(l2, 0.0)  # M = l1 u uᵀ + l2 u⊥ u⊥ᵀ
+            m00 = l1 * ux * ux + l2 * uy * uy
+            m11 = l1 * uy * uy + l2 * ux * ux
+            m01 = (l1 - l2) * ux * uy
+        for e in range(tri_ptr[v], tri_ptr[v + 1]):
+            t = tri[e]
+            d = dr_inv[t]
+            al = (-d[0, 0] - d[1, 0], d[0, 0], d[1, 0])
+            be = (-d[0, 1] - d[1, 1], d[0, 1], d[1, 1])
+            s = av * weight[e]
+            for a in range(3):
+                ra = local[e, a]
+                for b in range(3):
+                    rb = local[e, b]
+                    g = s * (m00 * al[a] * al[b] + m11 * be[a] * be[b]
+                             + m01 * (al[a] * be[b] + be[a] * al[b]))
+                    block = values[slots[start + ra * m + rb]]
+                    for p in range(3):
+                        block[p, p] += g
+        start += m * m
+    return total
