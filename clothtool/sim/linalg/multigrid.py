@@ -42,6 +42,7 @@ from clothtool.sim.linalg.blocks import BlockPattern
 from clothtool.vec3 import spd_inverse3
 
 COARSEST = 32  # nodes at which the hierarchy stops (dense Cholesky of ≤ 6·32 unknowns)
+OMEGA = 0.6  # block-Jacobi smoothing weight (λmax(D⁻¹A) ≤ 2 for these matrices)
 PIVOT = 1e-12  # smallest Cholesky pivot relative to its diagonal entry
 DROP = 1e-8  # a mode whose part beyond the aggregate's other modes is this small is dropped
 MODES = 6  # rigid-body modes per coarse node
@@ -115,7 +116,7 @@ class Hierarchy:
 
     def apply(self, rhs, out):
         """out = B rhs (one cycle; :meth:`setup` first)."""
-        vcycle(rhs, out, *self.fine, self.arrays)
+        vcycle(rhs, out, self.fine[0], self.fine[1], self.arrays)
 
     def __init__(self, row_ptr, col, graph, positions):
         levels = [(row_ptr, col)]
@@ -147,6 +148,13 @@ class Hierarchy:
         self.slot_map = np.concatenate([m for _, m in aggs]).astype(np.int64)
         # the nodes of each aggregate: members[node_off[l] + member_ptr[row_off[l+1] + a] …]
         # are those of aggregate a of level l + 1 (local node numbers of level l)
+        # the slot of block (j, i) for each coarse slot (i, j), local to its level
+        transpose = []
+        for rp, cl in levels[1:]:
+            nl = len(rp) - 1
+            rows = np.repeat(np.arange(nl), np.diff(rp))
+            transpose.append(np.searchsorted(rows * nl + cl, cl * nl + rows))
+        self.transpose = np.concatenate(transpose).astype(np.int64)
         self.members = np.concatenate([np.argsort(a, kind="stable") for a, _ in aggs])
         self.member_ptr = np.zeros(self.row_off[-1], np.int64)
         for lev, (a, _) in enumerate(aggs):
@@ -161,6 +169,8 @@ class Hierarchy:
         self.coarse_inv = np.zeros((coarse, MODES, MODES))
         self.coarsest = np.zeros((MODES * sizes[-1], MODES * sizes[-1]))
         self.t = np.zeros((sizes[0], 3))
+        self.u = np.zeros((sizes[0], 3))
+        self.filtered = np.zeros((nnz[0], 3, 3))  # S A S + (I − S) on the mesh
         self.r = np.zeros((coarse, MODES))
         self.z = np.zeros((coarse, MODES))
         self.w = np.zeros((coarse, MODES))
@@ -169,7 +179,8 @@ class Hierarchy:
         self.arrays = (self.node_off, self.block_off, self.row_ptr, self.row_off, self.col,
                        self.agg, self.slot_map, self.members, self.member_ptr, self.fine_p,
                        self.coarse_p, self.modes, self.values, self.fine_inv, self.coarse_inv,
-                       self.coarsest, self.t, self.r, self.z, self.w)
+                       self.coarsest, self.t, self.r, self.z, self.w, self.filtered, self.u,
+                       self.transpose)
 
 
 _I = np.zeros(1, np.int64)
@@ -178,7 +189,7 @@ NO_MULTIGRID = (_I, _I, _I, _I, _E, _E, _E, _E, _E, np.zeros((0, 3, MODES)),
                 np.zeros((0, MODES, MODES)), np.zeros((0, MODES, MODES)),
                 np.zeros((0, MODES, MODES)), np.zeros((0, 3, 3)), np.zeros((0, MODES, MODES)),
                 np.zeros((0, 0)), np.zeros((0, 3)), np.zeros((0, MODES)), np.zeros((0, MODES)),
-                np.zeros((0, MODES)))
+                np.zeros((0, MODES)), np.zeros((0, 3, 3)), np.zeros((0, 3)), _E)
 
 
 @njit(cache=True)
@@ -210,13 +221,15 @@ def _filtered_block(b, i, j, kind, normal, out):
                     out[p, q] += normal[i, p] * normal[i, q]
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _fine_block(values, s, i, j, kind, normal, constrained, block):
-    """The filtered fine block of slot s = (i, j), in ``block`` or ``values[s]`` itself."""
+    """block = the filtered fine block of slot s = (i, j)."""
     if constrained and (kind[i] != FREE or kind[j] != FREE):
         _filtered_block(values[s], i, j, kind, normal, block)
-        return block
-    return values[s]
+    else:
+        for p in range(3):
+            for q in range(3):
+                block[p, q] = values[s, p, q]
 
 
 @njit(cache=True)
@@ -310,13 +323,16 @@ def setup_levels(row_ptr0, col0, fine, kind, normal, constrained, floor, x, mg):
     blocks of 1e22·m/ĥ² whose small eigenvalues rounding has erased."""
     (node_off, block_off, row_ptr, row_off, col, agg, slot_map, members, member_ptr, fine_p,
      coarse_p, modes, values, fine_inv, coarse_inv, coarsest) = mg[:16]
+    filtered = mg[20]
     levels = node_off.shape[0] - 1
     n = node_off[1]
     c1 = node_off[1]  # coarse node v is modes[v − c1]
     base = block_off[1]
     values[:, :, :] = 0.0
-    block = np.empty((3, 3))
-    # level 0: block inverses
+    # level 0: the filtered fine matrix and its block inverses
+    for i in range(n):
+        for s in range(row_ptr0[i], row_ptr0[i + 1]):
+            _fine_block(fine, s, i, col0[s], kind, normal, constrained, filtered[s])
     for i in range(n):
         lower = floor[i]
         if constrained and kind[i] == PINNED:
@@ -326,8 +342,7 @@ def setup_levels(row_ptr0, col0, fine, kind, normal, constrained, floor, x, mg):
         s = row_ptr0[i]
         while col0[s] != i:
             s += 1
-        spd_inverse3(_fine_block(fine, s, i, i, kind, normal, constrained, block), lower,
-                     fine_inv[i])
+        spd_inverse3(filtered[s], lower, fine_inv[i])
     # level 0 → 1: the rigid modes about the centroid, QR per aggregate
     centre = np.zeros(3)
     for i in range(n):
@@ -387,7 +402,7 @@ def setup_levels(row_ptr0, col0, fine, kind, normal, constrained, floor, x, mg):
             j = col0[s]
             if constrained and kind[j] == PINNED:
                 continue
-            b = _fine_block(fine, s, i, j, kind, normal, constrained, block)
+            b = filtered[s]
             pj = fine_p[j]
             for p in range(3):
                 for q in range(MODES):
@@ -398,8 +413,21 @@ def setup_levels(row_ptr0, col0, fine, kind, normal, constrained, floor, x, mg):
                     target[p, q] += pi[0, p] * t[0, q] + pi[1, p] * t[1, q] + pi[2, p] * t[2, q]
     # coarse levels: block inverses, Galerkin to the next
     tc = np.empty((MODES, MODES))
+    transpose = mg[22]
     for lev in range(1, levels):
         n0, b0, r0 = node_off[lev], block_off[lev], row_off[lev]
+        # A_ij = ½(A_ij + A_jiᵀ): the products round differently on the two sides (by
+        # ε × 1e22·m/ĥ² next to a contact barrier), and the sweeps need A exactly symmetric
+        for s in range(block_off[lev + 1] - b0):
+            u = transpose[b0 - base + s]
+            if u < s:
+                continue
+            a, c = values[b0 + s - base], values[b0 + u - base]
+            for p in range(MODES):
+                for q in range(MODES if u > s else p + 1):
+                    avg = 0.5 * (a[p, q] + c[q, p])
+                    a[p, q] = avg
+                    c[q, p] = avg
         for i in range(node_off[lev + 1] - n0):
             pi = coarse_p[n0 + i - c1]
             for s in range(row_ptr[r0 + i], row_ptr[r0 + i + 1]):
@@ -455,66 +483,40 @@ def _cholesky_solve(lower, r, z, lo, hi):
 
 
 @njit(cache=True)
-def _fine_forward(row_ptr0, col0, fine, kind, normal, constrained, inv, rhs, z, t):
-    """Forward block Gauss–Seidel from z = 0 on the filtered fine matrix, and t = rhs − A z."""
-    n = rhs.shape[0]
-    block = np.empty((3, 3))
-    for i in range(n):
-        if constrained and kind[i] == PINNED:
-            z[i] = 0.0
-            t[i] = 0.0
-            continue
+def _fine_jacobi(row_ptr0, col0, fine, inv, rhs, z, out):
+    """out = z + ω D̃⁻¹ (rhs − A z), one damped block-Jacobi sweep on the filtered fine matrix.
+
+    Jacobi rather than Gauss–Seidel on the mesh: a Gauss–Seidel sweep in any order but the
+    forward one (its adjoint runs backward) was measured 5–7× slower than a matrix product
+    here (the product streams the blocks forward, a backward or coloured sweep does not)."""
+    for i in range(rhs.shape[0]):
         s0, s1, s2 = rhs[i, 0], rhs[i, 1], rhs[i, 2]
-        d = row_ptr0[i]
         for s in range(row_ptr0[i], row_ptr0[i + 1]):
             j = col0[s]
-            if j >= i:
-                d = s
-                break
-            b = _fine_block(fine, s, i, j, kind, normal, constrained, block)
+            b = fine[s]
             s0 -= b[0, 0] * z[j, 0] + b[0, 1] * z[j, 1] + b[0, 2] * z[j, 2]
             s1 -= b[1, 0] * z[j, 0] + b[1, 1] * z[j, 1] + b[1, 2] * z[j, 2]
             s2 -= b[2, 0] * z[j, 0] + b[2, 1] * z[j, 1] + b[2, 2] * z[j, 2]
         m = inv[i]
-        z0 = m[0, 0] * s0 + m[0, 1] * s1 + m[0, 2] * s2
-        z1 = m[1, 0] * s0 + m[1, 1] * s1 + m[1, 2] * s2
-        z2 = m[2, 0] * s0 + m[2, 1] * s1 + m[2, 2] * s2
-        z[i, 0], z[i, 1], z[i, 2] = z0, z1, z2
-        b = _fine_block(fine, d, i, i, kind, normal, constrained, block)
-        t[i, 0] = s0 - (b[0, 0] * z0 + b[0, 1] * z1 + b[0, 2] * z2)
-        t[i, 1] = s1 - (b[1, 0] * z0 + b[1, 1] * z1 + b[1, 2] * z2)
-        t[i, 2] = s2 - (b[2, 0] * z0 + b[2, 1] * z1 + b[2, 2] * z2)
-    for i in range(n):  # the later rows' part of the residual
-        if constrained and kind[i] == PINNED:
-            continue
-        for s in range(row_ptr0[i + 1] - 1, row_ptr0[i] - 1, -1):
-            j = col0[s]
-            if j <= i:
-                break
-            b = _fine_block(fine, s, i, j, kind, normal, constrained, block)
-            t[i, 0] -= b[0, 0] * z[j, 0] + b[0, 1] * z[j, 1] + b[0, 2] * z[j, 2]
-            t[i, 1] -= b[1, 0] * z[j, 0] + b[1, 1] * z[j, 1] + b[1, 2] * z[j, 2]
-            t[i, 2] -= b[2, 0] * z[j, 0] + b[2, 1] * z[j, 1] + b[2, 2] * z[j, 2]
+        out[i, 0] = z[i, 0] + OMEGA * (m[0, 0] * s0 + m[0, 1] * s1 + m[0, 2] * s2)
+        out[i, 1] = z[i, 1] + OMEGA * (m[1, 0] * s0 + m[1, 1] * s1 + m[1, 2] * s2)
+        out[i, 2] = z[i, 2] + OMEGA * (m[2, 0] * s0 + m[2, 1] * s1 + m[2, 2] * s2)
 
 
 @njit(cache=True)
-def _fine_backward(row_ptr0, col0, fine, kind, normal, constrained, inv, rhs, z):
-    """Backward block Gauss–Seidel: z_i += D̃_i⁻¹ (rhs − A z)_i for i = N−1 … 0."""
-    block = np.empty((3, 3))
-    for i in range(rhs.shape[0] - 1, -1, -1):
-        if constrained and kind[i] == PINNED:
-            continue
+def _fine_residual(row_ptr0, col0, fine, rhs, z, out):
+    """out = rhs − A z on the filtered fine matrix."""
+    for i in range(rhs.shape[0]):
         s0, s1, s2 = rhs[i, 0], rhs[i, 1], rhs[i, 2]
         for s in range(row_ptr0[i], row_ptr0[i + 1]):
             j = col0[s]
-            b = _fine_block(fine, s, i, j, kind, normal, constrained, block)
+            b = fine[s]
             s0 -= b[0, 0] * z[j, 0] + b[0, 1] * z[j, 1] + b[0, 2] * z[j, 2]
             s1 -= b[1, 0] * z[j, 0] + b[1, 1] * z[j, 1] + b[1, 2] * z[j, 2]
             s2 -= b[2, 0] * z[j, 0] + b[2, 1] * z[j, 1] + b[2, 2] * z[j, 2]
-        m = inv[i]
-        z[i, 0] += m[0, 0] * s0 + m[0, 1] * s1 + m[0, 2] * s2
-        z[i, 1] += m[1, 0] * s0 + m[1, 1] * s1 + m[1, 2] * s2
-        z[i, 2] += m[2, 0] * s0 + m[2, 1] * s1 + m[2, 2] * s2
+        out[i, 0] = s0
+        out[i, 1] = s1
+        out[i, 2] = s2
 
 
 @njit(cache=True)
@@ -564,14 +566,19 @@ def _coarse_residual(lev, mg, rhs, z, out):
 
 
 @njit(cache=True)
-def vcycle(rhs, out, row_ptr0, col0, fine, kind, normal, constrained, mg):
-    """out = B rhs: a V-cycle, forward Gauss–Seidel down, backward Gauss–Seidel up."""
+def vcycle(rhs, out, row_ptr0, col0, mg):
+    """out = B rhs: a V-cycle; on the mesh a damped block-Jacobi sweep before and after the
+    coarse correction, below it forward Gauss–Seidel down and backward Gauss–Seidel up."""
     (node_off, _, _, _, _, agg, _, _, _, fine_p, coarse_p, _, _, fine_inv, _, coarsest, t, r, z,
-     w) = mg
+     w, fine, u) = mg[:22]
     levels = node_off.shape[0] - 1
     n = node_off[1]
     c1 = n
-    _fine_forward(row_ptr0, col0, fine, kind, normal, constrained, fine_inv, rhs, out, t)
+    for i in range(n):  # pre-smooth from zero: ω D̃⁻¹ rhs
+        m = fine_inv[i]
+        for p in range(3):
+            u[i, p] = OMEGA * (m[p, 0] * rhs[i, 0] + m[p, 1] * rhs[i, 1] + m[p, 2] * rhs[i, 2])
+    _fine_residual(row_ptr0, col0, fine, rhs, u, t)
     r[:, :] = 0.0
     for i in range(n):  # restrict: r_agg += P_iᵀ t_i
         c = agg[i]
@@ -610,5 +617,5 @@ def vcycle(rhs, out, row_ptr0, col0, fine, kind, normal, constrained, mg):
             acc = 0.0
             for q in range(MODES):
                 acc += p[m, q] * z[c, q]
-            out[i, m] += acc
-    _fine_backward(row_ptr0, col0, fine, kind, normal, constrained, fine_inv, rhs, out)
+            u[i, m] += acc
+    _fine_jacobi(row_ptr0, col0, fine, fine_inv, rhs, u, out)

@@ -101,7 +101,7 @@ def _xpby(x, beta, y):
 def _precondition(row_ptr, col, values, inv, r, kind, normal, constrained, z, mg):
     """z = S P⁻¹ r: block Jacobi, or the multigrid V-cycle when mg holds a hierarchy."""
     if len(mg[0]) > 1:
-        vcycle(r, z, row_ptr, col, values, kind, normal, constrained, mg)
+        vcycle(r, z, row_ptr, col, mg)
     else:
         _apply_inverse(inv, r, z)
     if constrained:
