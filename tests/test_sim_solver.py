@@ -264,7 +264,7 @@ def filter_matrix(kind, normal):
 
 def test_multigrid_preconditioner_is_symmetric_positive_definite_on_the_free_space():
     model, blocks, matrix, kind, normal = constrained_system()
-    hierarchy = Hierarchy.for_mesh(model.pattern, model.faces, model.mesh.positions)
+    hierarchy = Hierarchy.for_mesh(model.pattern, model.faces)
     assert hierarchy.node_off.size >= 3  # at least two levels below the mesh
     hierarchy.setup(blocks, ConstraintFilter(kind, normal))
     n = 3 * model.n_vertices
@@ -288,7 +288,7 @@ def test_filtered_pcg_with_each_preconditioner_matches_a_direct_solve(preconditi
     constraints = ConstraintFilter(kind, normal)
     mg = BlockJacobi(model.n_vertices)
     if preconditioner == "multigrid":
-        mg = Hierarchy.for_mesh(model.pattern, model.faces, model.mesh.positions)
+        mg = Hierarchy.for_mesh(model.pattern, model.faces)
     rng = np.random.default_rng(5)
     b = rng.normal(size=(model.n_vertices, 3))
     sol = np.zeros_like(b)

@@ -119,8 +119,7 @@ class NewtonIntegrator(Integrator):
         self._normal = np.zeros((n, 3))
         self._free_mass = float(np.sum(model.mass[model.free]))
         self.preconditioner = make_preconditioner(
-            solver.preconditioner if self.multigrid else "jacobi", pattern, model.faces,
-            model.mesh.positions)
+            solver.preconditioner if self.multigrid else "jacobi", pattern, model.faces)
         self.contact = None  # mesh colliders and self-collision (clothtool.sim.contact)
         if model.contact is not None:
             self.contact = BarrierContact(model.contact, model.mass, model.free, h,
@@ -210,8 +209,7 @@ class NewtonIntegrator(Integrator):
         matrix.add_diagonal(model.mass / (h * h))
         elastic = np.zeros_like(x0)
         filtered_pcg(matrix, force / (h * h), elastic, ConstraintFilter(model.kind, self._normal),
-                     self.solver.tolerance, self.solver.max_iterations, self.preconditioner,
-                     positions=x0)
+                     self.solver.tolerance, self.solver.max_iterations, self.preconditioner)
         a0 = model.gravity + elastic
         if model.has_pins:
             a0[model.pinned] = 0.0
@@ -304,8 +302,7 @@ class NewtonIntegrator(Integrator):
                 contact.add_collider_coupling(rhs)
             cg_its, res = filtered_pcg(matrix, rhs, dx, constraints, forcing,
                                        solver.max_iterations, self.preconditioner,
-                                       contact.operator if contact is not None else NO_PAIRS,
-                                       positions=x)
+                                       contact.operator if contact is not None else NO_PAIRS)
             report.newton_iterations += 1
             report.cg_iterations += cg_its
             report.residual = max(report.residual, res)

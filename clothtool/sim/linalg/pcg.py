@@ -35,18 +35,17 @@ class BlockJacobi:
     def __init__(self, n_vertices):
         self.inverse = np.zeros((n_vertices, 3, 3))
 
-    def setup(self, matrix, constraints, positions=None):
-        """Invert the diagonal blocks of a :class:`BlockMatrix` (pinned vertices: zero); the
-        positions are not needed."""
+    def setup(self, matrix, constraints):
+        """Invert the diagonal blocks of a :class:`BlockMatrix` (pinned vertices: zero)."""
         block_jacobi(matrix.values, matrix.pattern.diag, constraints.kind, matrix.floor,
                      self.inverse)
 
 
-def make_preconditioner(name, pattern, faces, positions):
+def make_preconditioner(name, pattern, faces):
     """``solver.preconditioner`` for a matrix pattern: a :class:`Hierarchy` for
     ``multigrid`` (block Jacobi on meshes too small to coarsen), else block Jacobi."""
     if name == "multigrid" and pattern.n > COARSEST:
-        return Hierarchy.for_mesh(pattern, faces, positions)
+        return Hierarchy.for_mesh(pattern, faces)
     return BlockJacobi(pattern.n)
 
 
@@ -98,18 +97,17 @@ def _xpby(x, beta, y):
 
 
 @njit(cache=True)
-def _precondition(row_ptr, col, values, inv, r, kind, normal, constrained, z, mg):
+def _precondition(inv, r, kind, normal, constrained, z, mg):
     """z = S P⁻¹ r: block Jacobi, or the multigrid V-cycle when mg holds a hierarchy."""
     if len(mg[0]) > 1:
-        vcycle(r, z, row_ptr, col, mg)
+        vcycle(r, z, mg)
     else:
         _apply_inverse(inv, r, z)
     if constrained:
         apply_filter(z, kind, normal)
 
 
-def filtered_pcg(matrix, b, x, constraints, tol, max_iter, preconditioner, extra=NO_PAIRS,
-                 positions=None):
+def filtered_pcg(matrix, b, x, constraints, tol, max_iter, preconditioner, extra=NO_PAIRS):
     """Solve S(A x − b) = 0 from x, whose constrained components (I − S)x stay as given.
 
     ``matrix``: a :class:`BlockMatrix`; ``constraints``: a :class:`ConstraintFilter`
@@ -117,11 +115,9 @@ def filtered_pcg(matrix, b, x, constraints, tol, max_iter, preconditioner, extra
     :class:`~clothtool.sim.linalg.multigrid.Hierarchy`, set up here for this matrix and filter;
     ``extra``: a pair operator (:mod:`clothtool.sim.linalg.pairs`) whose off-diagonal part is
     applied matrix-free; its diagonal blocks are already in the matrix. Stops when the true relative residual ‖S(b − Ax)‖ / ‖S b‖ ≤ ``tol`` or after
-    ``max_iter`` iterations; ``positions`` (N, 3) where the multigrid takes its rigid modes
-    (the current Newton iterate; default: those of its last setup). Returns (iterations,
-    relative true residual).
+    ``max_iter`` iterations. Returns (iterations, relative true residual).
     """
-    preconditioner.setup(matrix, constraints, positions)
+    preconditioner.setup(matrix, constraints)
     return filtered_pcg_arrays(matrix.pattern.row_ptr, matrix.pattern.col, matrix.values, b, x,
                                constraints.kind, constraints.normal, constraints.active, tol,
                                max_iter, preconditioner.inverse, preconditioner.arrays, extra)
@@ -155,7 +151,7 @@ def filtered_pcg_arrays(row_ptr, col, values, b, x, kind, normal, constrained, t
         apply_filter(r, kind, normal)
     if b_norm == 0.0:
         b_norm = 1.0  # nothing to solve for but the prescribed components: absolute test
-    _precondition(row_ptr, col, values, inv, r, kind, normal, constrained, z, mg)
+    _precondition(inv, r, kind, normal, constrained, z, mg)
     p = z.copy()
     rz = _dot(r, z)
     res = np.sqrt(_dot(r, r)) / b_norm
@@ -169,7 +165,7 @@ def filtered_pcg_arrays(row_ptr, col, values, b, x, kind, normal, constrained, t
             res = np.sqrt(_dot(r, r)) / b_norm
             if res <= tol:
                 break
-            _precondition(row_ptr, col, values, inv, r, kind, normal, constrained, z, mg)
+            _precondition(inv, r, kind, normal, constrained, z, mg)
             p[:] = z
             rz = _dot(r, z)
         block_multiply(row_ptr, col, values, p, q)
@@ -183,7 +179,7 @@ def filtered_pcg_arrays(row_ptr, col, values, b, x, kind, normal, constrained, t
         alpha = rz / pq
         _axpy(alpha, p, x)
         _axpy(-alpha, q, r)
-        _precondition(row_ptr, col, values, inv, r, kind, normal, constrained, z, mg)
+        _precondition(inv, r, kind, normal, constrained, z, mg)
         rz_new = _dot(r, z)
         _xpby(z, rz_new / rz, p)
         rz = rz_new
