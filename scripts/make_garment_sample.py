@@ -142,7 +142,8 @@ SCENE = """\
 mesh:
   obj: {folder}/skirt.obj
   uv_scale: 0.01          # the pattern's vt are in centimetres
-  seams:                  # front's left side to back's left side, and the right sides
+  seams:                  # front's left side to back's left side, and the right sides: OBJ
+                          # groups of l polylines (or lists of vertex indices)
 {seams}
   sewing: {{stiffness: 1000.0, time: 1.0}}
 material: {{density: 0.15, stretch: 3000.0, shear: 50.0, bend: 5.0e-6, damping: 0.02}}
@@ -164,9 +165,9 @@ def list_text(ids):
 
 
 def seam_lines(seams):
-    pairs = (("front_left", "back_left"), ("front_right", "back_right"))
-    return "\n".join(f"    - {{a: {list_text(seams[a])}, b: {list_text(seams[b])}}}"
-                     for a, b in pairs)
+    """The side seams by the names of the skirt's ``l`` groups (their vertex lists would do)."""
+    return "\n".join(f"    - {{a: {a}, b: {b}}}" for a, b in
+                     (("front_left", "back_left"), ("front_right", "back_right")))
 
 
 def write_body_frame(path, x, faces):

@@ -67,18 +67,30 @@ def vertex_list(value, key):
     return tuple(value)
 
 
+def seam_side(value, key):
+    """A seam side: a list of vertex indices, or the name of an OBJ group (``g``) whose
+    boundary edges are the side."""
+    if isinstance(value, str) and value:
+        return value
+    if not isinstance(value, list):
+        raise type_error(key, "a list of vertex indices or an OBJ group's name", value)
+    return vertex_list(value, key)
+
+
 @dataclass(frozen=True)
 class Seam(Section):
-    """Two boundary polylines sewn together: vertex ``a[i]`` to ``b[i]``."""
+    """Two boundary polylines sewn together: vertex ``a[i]`` to ``b[i]``; a side may name an
+    OBJ group instead, whose boundary edges are the polyline."""
 
-    a: tuple = setting((), vertex_list)
-    b: tuple = setting((), vertex_list)
+    a: tuple | str = setting((), seam_side)
+    b: tuple | str = setting((), seam_side)
 
     def finish(self, given, key):
         for side in ("a", "b"):
             if side not in given:
-                raise InputError(f"{key} needs '{side}' (a list of vertex indices)")
-        if len(self.a) != len(self.b):
+                raise InputError(f"{key} needs '{side}' (a list of vertex indices or an OBJ "
+                                 "group's name)")
+        if isinstance(self.a, tuple) and isinstance(self.b, tuple) and len(self.a) != len(self.b):
             raise InputError(f"{key}: a has {len(self.a)} vertices and b {len(self.b)}; "
                              "a[i] is sewn to b[i]")
         return self
@@ -86,7 +98,8 @@ class Seam(Section):
 
 def seam_list(value, key):
     if not isinstance(value, list):
-        raise type_error(key, "a list of seams {a: [...], b: [...]}", value)
+        raise type_error(key, "a list of seams {a: [...], b: [...]} or {a: group, b: group}",
+                         value)
     return tuple(Seam.build(item, f"{key}[{i}]") for i, item in enumerate(value))
 
 
