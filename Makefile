@@ -1,5 +1,6 @@
 # make demo   set up .venv, analyze the bundled sample_data/, simulate and analyze a hanging sheet
-#             and a sheet draped over a body (contact, no intersections)
+#             and a sheet draped over a body (contact, no intersections), then dress a walking
+#             mannequin in a two-panel skirt (sewn, attached) and render it: a picture and a movie
 # make test   set up .venv and run the test suite
 # make bench  set up .venv (with benchmark extras) and write bench-results/
 PYTHON ?= python3
@@ -25,7 +26,12 @@ demo: $(VENV)/.installed
 	$(CLOTHTOOL) simulate sample_data/drape.yaml -o demo-out/drape
 	$(CLOTHTOOL) analyze demo-out/drape -o demo-out/drape.h5 --reference uv -q
 	$(CLOTHTOOL) plot demo-out/drape.h5 -o demo-out/drape.png
-	@echo "open demo-out/*.xdmf in ParaView; figures: demo-out/hanging_sheet.png, demo-out/drape.png"
+	$(CLOTHTOOL) simulate sample_data/garment.yaml -o demo-out/garment
+	$(CLOTHTOOL) analyze demo-out/garment -o demo-out/garment.h5 --reference uv -q
+	$(CLOTHTOOL) render demo-out/garment -o demo-out/garment-render -q
+	cp demo-out/garment-render/frame_00045.png demo-out/garment.png
+	@echo "open demo-out/*.xdmf in ParaView; figures: demo-out/hanging_sheet.png, demo-out/drape.png,"
+	@echo "demo-out/garment.png and the movie in demo-out/garment-render/ (movie.mp4, or movie.gif)"
 
 test: $(VENV)/.installed
 	$(PY) -m pytest -q

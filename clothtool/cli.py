@@ -333,9 +333,11 @@ def plot(result, output, pair, field, component, dpi, config):
 
 RENDER_EPILOG = """\b
 Examples:
-  clothtool render demo-out/drape -o demo-out/drape-render --config sample_data/drape.yaml
-      the cloth and the body it falls on: frame_00000.png ... and movie.mp4 (or movie.gif)
+  clothtool render demo-out/drape -o demo-out/drape-render
+      the cloth and the body it falls on (from the config.yaml simulate wrote beside the
+      frames): frame_00000.png ... and movie.mp4 (or movie.gif)
   clothtool render runs/run_0003 -o pictures/      a sweep's run: its config.yaml is used
+  clothtool render frames/ -o pics/ --config scene.yaml   frames from elsewhere, with a scene
   clothtool render 'out/obj/*.obj' -o pics/ --fps 60 --no-movie
 
 \b

@@ -7,9 +7,12 @@ Hessian are finite-difference checked; sewn seams close and weld; attached verti
 their collider exactly; every bad input is one line naming the file and the item.
 """
 
+import re
+
 import h5py
 import numpy as np
 import pytest
+import yaml
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -449,3 +452,118 @@ def test_bad_attach_names_the_item(tmp_path, attach, message):
                      "attach": attach}}
     with pytest.raises(InputError, match=message):
         build_model(load_config(cfg))
+
+
+def seam_lines_obj(tmp_path, lines):
+    """The apart pair as panels.obj with ``lines`` {group: vertex list} as ``l`` polylines."""
+    path, a, b, x = apart_obj(tmp_path)
+    with open(path, "a") as fh:
+        for name, ids in lines.items():
+            fh.write(f"g {name}\nl " + " ".join(str(int(v) + 1) for v in ids) + "\n")
+    return path, a, b, x
+
+
+def stitch_set(builder):
+    return {tuple(p) for p in builder.stitches.tolist()}, np.sort(builder.stitch_stiffness)
+
+
+@pytest.mark.parametrize("flip_a, flip_b", [(False, False), (True, False), (False, True)])
+def test_a_seam_by_obj_groups_is_the_seam_by_vertex_lists(tmp_path, flip_a, flip_b):
+    """Sides named by ``l`` groups, given in either direction, sew the same pairs with the same
+    stiffness as the vertex lists: a runs along its panel's boundary, b against its own."""
+    path, a, b, _ = apart_obj(tmp_path)
+    path, a, b, _ = seam_lines_obj(tmp_path, {"right_edge": a[::-1] if flip_a else a,
+                                              "left_edge": b[::-1] if flip_b else b})
+    by_list = ModelBuilder.from_config(load_config(sewing_config(path, a, b)))
+    cfg = sewing_config(path, a, b)
+    cfg["mesh"]["seams"] = [{"a": "right_edge", "b": "left_edge"}]
+    by_name = ModelBuilder.from_config(load_config(cfg))
+    pairs, k = stitch_set(by_list)
+    named_pairs, named_k = stitch_set(by_name)
+    assert named_pairs == pairs and np.array_equal(named_k, k)
+
+
+def test_line_groups_read_relative_and_slashed_indices(tmp_path):
+    from clothtool.io.obj_groups import line_groups
+
+    path = tmp_path / "l.obj"
+    path.write_text("v 0 0 0\nv 1 0 0\nv 1 1 0\ng one two\nl 1 2/1 -1\ng three\nl -2 -3\n")
+    got = line_groups(path)
+    assert got["one"].tolist() == [[0, 1], [1, 2]] and got["two"].tolist() == got["one"].tolist()
+    assert got["three"].tolist() == [[1, 0]]
+    path.write_text("v 0 0 0\nl 1 4\n")
+    with pytest.raises(InputError, match=r"l\.obj:2: an l statement needs 2 or more vertices"):
+        line_groups(path)
+
+
+@pytest.mark.parametrize("seam, lines, message", [
+    ({"a": "nowhere", "b": "left_edge"}, lambda a: [],
+     r"panels\.obj: mesh\.seams\[0\]\.a: no group 'nowhere' in the OBJ \(its groups: left, "
+     r"left_edge, right\)"),
+    ({"a": "left", "b": "left_edge"}, lambda a: [],  # a face group: its boundary is its outline
+     r"mesh\.seams\[0\]\.a: group 'left''s boundary edges are not one open polyline"),
+    ({"a": "pieces", "b": "left_edge"}, lambda a: [("pieces", a[:2]), ("pieces", a[3:5])],
+     r"mesh\.seams\[0\]\.a: group 'pieces''s boundary edges are not one open polyline"),
+    ({"a": "across", "b": "left_edge"}, lambda a: [("across", [6, 7])],
+     r"mesh\.seams\[0\]\.a: group 'across': vertices 6 and 7 are not a boundary edge"),
+    ({"a": "short", "b": "left_edge"}, lambda a: [("short", a[:-1])],
+     r"mesh\.seams\[0\]: a has 6 vertices and b 7; a\[i\] is sewn to b\[i\]"),
+])
+def test_bad_group_seams_are_one_line_errors(tmp_path, seam, lines, message):
+    path, a, b, _ = seam_lines_obj(tmp_path, {"left_edge": apart_pair()[-1]})
+    with open(path, "a") as fh:
+        for name, ids in lines(a):
+            fh.write(f"g {name}\nl " + " ".join(str(int(v) + 1) for v in ids) + "\n")
+    cfg = sewing_config(path, a, b)
+    cfg["mesh"]["seams"] = [seam]
+    with pytest.raises(InputError, match=message) as err:
+        build_model(load_config(cfg))
+    assert "\n" not in str(err.value)
+
+
+BAD_INPUTS = {  # each bad-input case of a garment run: (config change, the error's words)
+    "lengths": ("seam_tolerance", r"panels\.obj: mesh\.seams\[0\]: side a is .* m long"),
+    "orientation": ("reverse_b", r"panels\.obj: mesh\.seams\[0\]: a and b run the same way"),
+    "seam vertex": ("seam_vertex", r"panels\.obj: mesh\.seams\[0\]\.b\[0\]: vertex 9999 out of"),
+    "attach vertex": ("attach_vertex",
+                      r"panels\.obj: scene\.attach\.vertices\[0\]: vertex 9999 out of range"),
+    "no uv": ("no_uv", r"bare\.obj: mesh\.obj has no texture coordinates"),
+    "overlap": ("overlap", r"panels\.obj: the panels overlap at the start"),
+    "group": ("group", r"panels\.obj: mesh\.seams\[0\]\.a: no group 'nowhere'"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(BAD_INPUTS))
+def test_each_bad_garment_input_is_one_line_exit_2_and_writes_nothing(tmp_path, case):
+    from click.testing import CliRunner
+
+    from clothtool.cli import main
+
+    change, message = BAD_INPUTS[case]
+    x, lf, rf, luv, ruv, a, b = apart_pair()
+    if change == "seam_tolerance":
+        ruv = ruv * [1.0, 1.1]
+    if change == "overlap":
+        n = len(x) // 2
+        x[n:] = np.column_stack([np.full(n, -0.1), x[n:, 1], x[n:, 0] - 0.1])
+    path = write_obj(tmp_path / "panels.obj", x, [("left", lf, luv), ("right", rf, ruv)])
+    cfg = sewing_config(path, a, b[::-1] if change == "reverse_b" else b)
+    if change == "seam_vertex":
+        cfg["mesh"]["seams"][0]["b"][0] = 9999
+    if change == "attach_vertex":
+        cfg["scene"]["colliders"] = [{"sphere": {"center": [0, 2, 0], "radius": 0.1}}]
+        cfg["scene"]["attach"] = {"vertices": [9999], "to": 0}
+    if change == "group":
+        cfg["mesh"]["seams"] = [{"a": "nowhere", "b": "right"}]
+    if change == "no_uv":
+        bare = tmp_path / "bare.obj"
+        bare.write_text("".join(f"v {p} {q} {r}\n" for p, q, r in x) + "".join(
+            f"f {i + 1} {j + 1} {k + 1}\n" for i, j, k in np.concatenate([lf, rf])))
+        cfg["mesh"]["obj"] = str(bare)
+    (tmp_path / "run.yaml").write_text(yaml.safe_dump(cfg))
+    out = tmp_path / "out"
+    result = CliRunner().invoke(main, ["simulate", str(tmp_path / "run.yaml"), "-o", str(out)])
+    assert result.exit_code == 2, result.output
+    lines = result.output.strip().splitlines()
+    assert len(lines) == 1 and re.search(message, lines[0]), result.output
+    assert not out.exists()

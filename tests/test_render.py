@@ -84,10 +84,42 @@ def test_render_writes_every_frame_and_a_movie(run, tmp_path):
         assert gif.n_frames == FRAMES + 1
         assert gif.info["duration"] in (60, 66, 67)  # frames 2/30 s apart: 15 fps
 
+    beside = tmp_path / "beside"  # no --config: the config.yaml simulate wrote beside the frames
+    assert render(run / "out", "-o", beside, "--no-movie", "-q").exit_code == 0
+    assert not list(beside.glob("movie.*"))
+    assert pixels_near(plt.imread(beside / "frame_00004.png"), grey, 0.03) > 0.05
+
     bare = tmp_path / "bare"  # no config given and none beside the frames: the cloth only
-    assert render(run / "out", "-o", bare, "--no-movie", "-q").exit_code == 0
-    assert not list(bare.glob("movie.*"))
+    frames = tmp_path / "frames"
+    frames.mkdir()
+    for ply in (run / "out").glob("frame_*.ply"):
+        (frames / ply.name).write_bytes(ply.read_bytes())
+    assert render(frames, "-o", bare, "--no-movie", "-q").exit_code == 0
     assert pixels_near(plt.imread(bare / "frame_00004.png"), grey, 0.03) < 0.2 * with_colliders
+
+
+def test_render_writes_an_mp4_through_ffmpeg(run, tmp_path):
+    import shutil
+    import subprocess
+
+    if shutil.which("ffmpeg") is None or shutil.which("ffprobe") is None:
+        pytest.skip("ffmpeg is not installed: apt-get install -y --no-install-recommends ffmpeg")
+    out = tmp_path / "pics"
+    result = render(run / "out", "-o", out, "-q")
+    assert result.exit_code == 0, result.output
+    assert sorted(p.name for p in out.iterdir()) == \
+        [f"frame_{k:05d}.png" for k in range(FRAMES + 1)] + ["movie.mp4"]
+    probe = subprocess.run(
+        ["ffprobe", "-v", "error", "-select_streams", "v:0", "-count_frames", "-show_entries",
+         "stream=codec_name,width,height,nb_read_frames,avg_frame_rate,pix_fmt", "-of", "json",
+         str(out / "movie.mp4")], capture_output=True, text=True, check=True)
+    import json
+
+    stream = json.loads(probe.stdout)["streams"][0]
+    assert stream["codec_name"] == "h264" and stream["pix_fmt"] == "yuv420p"
+    assert (stream["width"], stream["height"]) == (640, 480)
+    assert int(stream["nb_read_frames"]) == FRAMES + 1
+    assert stream["avg_frame_rate"] == "15/1"  # frames 2/30 s apart
 
 
 def test_render_of_obj_frames_uses_the_runs_times(run, tmp_path):

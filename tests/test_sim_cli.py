@@ -28,7 +28,8 @@ def test_simulate_writes_frames_where_asked(tmp_path, monkeypatch):
     result = CliRunner().invoke(main, ["simulate", str(path), "-o", "here", "--set", "time.frames=2"])
     assert result.exit_code == 0, result.output
     assert sorted(p.name for p in (tmp_path / "here").iterdir()) == [
-        "frame_00000.ply", "frame_00001.ply", "frame_00002.ply", "stats.csv"]
+        "config.yaml", "frame_00000.ply", "frame_00001.ply", "frame_00002.ply", "stats.csv"]
+    assert "time: {frames: 2}" in (tmp_path / "here" / "config.yaml").read_text()  # as run
     assert "3 frames in here/" in result.output
     # without -o: output.dir, relative to the config's folder
     result = CliRunner().invoke(main, ["simulate", str(path), "--quiet"])

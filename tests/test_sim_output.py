@@ -92,8 +92,8 @@ def test_analyze_reads_the_obj_frames_as_the_ply_frames(run, tmp_path, reference
 def test_default_is_ply_only(tmp_path):
     out = tmp_path / "out"
     clothtool.simulate({**CONFIG, "output": {}}, output_dir=out, progress=False)
-    assert sorted(p.name for p in out.iterdir()) == [f"frame_{k:05d}.ply" for k in range(7)] + \
-        ["stats.csv"]
+    assert sorted(p.name for p in out.iterdir()) == ["config.yaml"] + \
+        [f"frame_{k:05d}.ply" for k in range(7)] + ["stats.csv"]
 
 
 def test_obj_only_and_a_rerun_clears_the_earlier_run(tmp_path):
@@ -103,10 +103,60 @@ def test_obj_only_and_a_rerun_clears_the_earlier_run(tmp_path):
     (out / "obj" / "mine.obj").write_text("v 0 0 0\n")
     clothtool.simulate({**CONFIG, "output": {"format": "obj"}, "time": {"frames": 1}},
                        output_dir=out, progress=False)
-    assert sorted(p.name for p in out.iterdir()) == ["cache", "notes.txt", "obj", "stats.csv"]
+    assert sorted(p.name for p in out.iterdir()) == ["cache", "config.yaml", "notes.txt", "obj",
+                                                     "stats.csv"]
     assert sorted(p.name for p in (out / "obj").iterdir()) == ["frame_00000.obj", "frame_00001.obj",
                                                                "mine.obj"]
     assert list((out / "cache").iterdir()) == []
+
+
+def test_the_resolved_config_beside_the_frames_reruns_the_same_frames(run, tmp_path,
+                                                                     monkeypatch):
+    text = (run / "config.yaml").read_text()
+    assert yaml.safe_load(text)["output"]["dir"] == str(run)  # where the frames went, absolute
+    monkeypatch.chdir(tmp_path)  # read back from elsewhere
+    again = load_config(run / "config.yaml")
+    assert again.time.frames == CONFIG["time"]["frames"] and again.output.every == 2
+    clothtool.simulate(again, output_dir=tmp_path / "again", progress=False)
+    for k in (0, 2, 4, 6):
+        name = f"frame_{k:05d}.ply"
+        assert (tmp_path / "again" / name).read_bytes() == (run / name).read_bytes()
+
+
+@pytest.mark.parametrize("sample", ["drape", "garment", "hanging_sheet", "stack", "tablecloth",
+                                    "twist"])
+def test_resolved_yaml_reads_back_as_the_same_config(sample, tmp_path, monkeypatch):
+    from dataclasses import replace
+    from pathlib import Path
+
+    from clothtool.sim.config import resolved_yaml
+    from clothtool.sim.schema import resolve_paths
+
+    config = load_config(Path(__file__).parent.parent / "sample_data" / f"{sample}.yaml")
+    (tmp_path / "config.yaml").write_text(resolved_yaml(config))
+    monkeypatch.chdir(tmp_path)
+    again = load_config(tmp_path / "config.yaml")
+    absolute = replace(resolve_paths(config, Path.cwd()), source=None)
+    normal = lambda c: yaml.safe_dump(resolved_yaml(c))  # noqa: E731 (paths normalised)
+    assert normal(replace(again, source=None)) == normal(absolute)
+    assert again.scene == replace(absolute.scene, colliders=again.scene.colliders)
+    assert len(again.scene.colliders) == len(config.scene.colliders)
+    assert again.material == config.material and again.mesh.seams == config.mesh.seams
+
+
+def test_a_sweep_runs_own_config_is_left_as_it_is(tmp_path):
+    (tmp_path / "config.yaml").write_text(yaml.safe_dump({**CONFIG, "output": {"dir": "."}}))
+    before = (tmp_path / "config.yaml").read_text()
+    clothtool.simulate(tmp_path / "config.yaml", progress=False)
+    assert (tmp_path / "config.yaml").read_text() == before
+    assert (tmp_path / "frame_00006.ply").is_file()
+
+
+def test_a_run_refused_at_the_start_writes_no_config(tmp_path):
+    bad = {**CONFIG, "scene": {"colliders": [{"sphere": {"center": [0, 0, 0], "radius": 0.1}}]}}
+    with pytest.raises(InputError):
+        clothtool.simulate(bad, output_dir=tmp_path / "out", progress=False)
+    assert not (tmp_path / "out" / "config.yaml").exists()
 
 
 @pytest.mark.parametrize("value, message", [

@@ -1,4 +1,5 @@
-"""The panels of an OBJ file: which triangles each ``g`` group and ``usemtl`` material holds.
+"""The panels of an OBJ file: which triangles each ``g`` group and ``usemtl`` material holds,
+and the edges of the ``l`` polylines each ``g`` group holds.
 
 A ``g`` statement sets the current groups (``g a b``: both) and ``usemtl`` the current material
 for the faces after it, until the next such statement (Wavefront's OBJ specification, "Grouping"
@@ -38,4 +39,37 @@ def face_groups(path, mesh):
             hit = np.flatnonzero(current == j)
             for name in group:
                 out[name] = np.union1d(out.get(name, np.zeros(0, np.int64)), hit).astype(np.int64)
+    return out
+
+
+def line_groups(path):
+    """{name: (K, 2) int64 vertex pairs} of the ``l`` polylines under each ``g`` group of the
+    OBJ file ``path``: each polyline ``l v1 v2 … vn`` gives its n − 1 segments, vertices
+    0-based (1-based or negative in the file, as in ``f``)."""
+    try:
+        with open(path, "rb") as fh:
+            lines = fh.read().split(b"\n")
+    except OSError as exc:
+        raise InputError(f"{path}: cannot read: {exc.strerror}") from None
+    out, current, vertices = {}, [], 0
+    for number, raw in enumerate(lines, start=1):
+        words = raw.split(b"#", 1)[0].split()
+        if not words:
+            continue
+        if words[0] == b"v":
+            vertices += 1
+        elif words[0] == b"g":
+            current = [w.decode("utf-8", "replace") for w in words[1:]]
+        elif words[0] == b"l":
+            try:
+                ids = [int(w.split(b"/")[0]) for w in words[1:]]
+            except ValueError:
+                raise InputError(f"{path}:{number}: an l statement takes vertex indices") from None
+            ids = [i - 1 if i > 0 else vertices + i for i in ids]
+            if len(ids) < 2 or not all(0 <= i < vertices for i in ids):
+                raise InputError(f"{path}:{number}: an l statement needs 2 or more vertices "
+                                 "defined before it")
+            segments = np.stack([ids[:-1], ids[1:]], axis=1).astype(np.int64)
+            for name in current:
+                out[name] = np.concatenate([out.get(name, np.zeros((0, 2), np.int64)), segments])
     return out

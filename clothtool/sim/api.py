@@ -3,7 +3,7 @@
 import statistics
 import sys
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -100,6 +100,7 @@ def simulate(config_or_path, *, output_dir=None, overrides=None, progress=True):
             written += 1
 
         record(0, StepReport(), 0.0)
+        _write_config(config, out_dir)  # once the start has passed its checks
         bar = tqdm(range(1, frames + 1), desc="simulate", unit="frame", file=sys.stderr,
                    disable=not (progress and sys.stderr.isatty()))
         for frame in bar:
@@ -136,6 +137,23 @@ def simulate(config_or_path, *, output_dir=None, overrides=None, progress=True):
                             sweeps=totals.sweeps, substeps=totals.substeps,
                             first_step_s=step_times[0] if step_times else 0.0,
                             step_s=step_times[1:])
+
+
+def _write_config(config, out_dir):
+    """The resolved config as ``out_dir``/config.yaml (atomic), which ``clothtool render`` and
+    ``clothtool simulate`` read back; not when the run's own config is that file (a sweep's
+    run folder)."""
+    from clothtool.io.atomic import atomic_path
+    from clothtool.sim.config import resolved_yaml
+    from clothtool.sim.scene import RUN_CONFIG
+
+    path = Path(out_dir) / RUN_CONFIG
+    if config.source is not None and path.resolve() == Path(config.source).resolve():
+        return
+    ran = replace(config, output=replace(config.output, dir=Path(out_dir)))
+    with atomic_path(path) as tmp:
+        Path(tmp).write_text("# clothtool simulate: the resolved config of the frames beside it\n"
+                             + resolved_yaml(ran), encoding="utf-8")
 
 
 def _max_speed(v):

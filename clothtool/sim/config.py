@@ -14,6 +14,7 @@ a config given as a dict resolves them against the current folder.
 
 from __future__ import annotations
 
+import dataclasses
 import os
 from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
@@ -27,7 +28,7 @@ from clothtool.sim.schema import (Section, as_dict, choice, choices, flag, integ
                                   pair_or_number, path, resolve_paths, section, setting,
                                   suggest, tagged, type_error, vector3)
 
-__all__ = ["load_config", "as_dict", "Config", "SECTIONS", "COLLIDER_KINDS"]
+__all__ = ["load_config", "resolved_yaml", "as_dict", "Config", "SECTIONS", "COLLIDER_KINDS"]
 
 PLANES = ("xy", "xz", "yz")
 BEND_MODELS = ("hessian", "dihedral", "quadratic")
@@ -67,18 +68,30 @@ def vertex_list(value, key):
     return tuple(value)
 
 
+def seam_side(value, key):
+    """A seam side: a list of vertex indices, or the name of an OBJ group (``g``) whose
+    boundary edges are the side."""
+    if isinstance(value, str) and value:
+        return value
+    if not isinstance(value, list):
+        raise type_error(key, "a list of vertex indices or an OBJ group's name", value)
+    return vertex_list(value, key)
+
+
 @dataclass(frozen=True)
 class Seam(Section):
-    """Two boundary polylines sewn together: vertex ``a[i]`` to ``b[i]``."""
+    """Two boundary polylines sewn together: vertex ``a[i]`` to ``b[i]``; a side may name an
+    OBJ group instead, whose boundary edges are the polyline."""
 
-    a: tuple = setting((), vertex_list)
-    b: tuple = setting((), vertex_list)
+    a: tuple | str = setting((), seam_side)
+    b: tuple | str = setting((), seam_side)
 
     def finish(self, given, key):
         for side in ("a", "b"):
             if side not in given:
-                raise InputError(f"{key} needs '{side}' (a list of vertex indices)")
-        if len(self.a) != len(self.b):
+                raise InputError(f"{key} needs '{side}' (a list of vertex indices or an OBJ "
+                                 "group's name)")
+        if isinstance(self.a, tuple) and isinstance(self.b, tuple) and len(self.a) != len(self.b):
             raise InputError(f"{key}: a has {len(self.a)} vertices and b {len(self.b)}; "
                              "a[i] is sewn to b[i]")
         return self
@@ -86,7 +99,8 @@ class Seam(Section):
 
 def seam_list(value, key):
     if not isinstance(value, list):
-        raise type_error(key, "a list of seams {a: [...], b: [...]}", value)
+        raise type_error(key, "a list of seams {a: [...], b: [...]} or {a: group, b: group}",
+                         value)
     return tuple(Seam.build(item, f"{key}[{i}]") for i, item in enumerate(value))
 
 
@@ -389,9 +403,10 @@ class Attach(Section):
 
     vertices: tuple = setting((), vertex_list)
     to: int = setting(0, integer(minimum=0))
+    required = ("vertices", "to")  # keys to give even at their default
 
     def finish(self, given, key):
-        for name in ("vertices", "to"):
+        for name in self.required:
             if name not in given:
                 raise InputError(f"{key} needs '{name}'")
         return self
@@ -575,6 +590,37 @@ def load_config(config, *, overrides=None, base_dir=None) -> Config:
     except InputError as exc:
         raise InputError(f"{label}: {exc}") from None
     return replace(resolve_paths(config, base), source=source)
+
+
+def resolved_yaml(config: Config) -> str:
+    """``config`` as YAML that :func:`load_config` reads back to the same config from any
+    folder: every key whose value differs from its default (a key left at its default reads
+    back the same), paths absolute."""
+    absolute = replace(resolve_paths(config, Path.cwd()), source=None)
+    return yaml.safe_dump(_record(absolute), sort_keys=False, default_flow_style=None, width=100)
+
+
+def _record(value):
+    """Plain data of a config value: a section's keys that differ from their defaults."""
+    if isinstance(value, Section):
+        out = {}
+        for f in dataclasses.fields(value):
+            v = getattr(value, f.name)
+            default = (f.default_factory() if f.default_factory is not dataclasses.MISSING
+                       else f.default)
+            if f.name == "bending_length" and getattr(value, "bend", None) is not None:
+                continue  # resolved into bend
+            if f.name != "source" and (v != default or f.name in getattr(value, "required", ())):
+                out[f.name] = ([{c.kind: _record(c)} for c in v] if f.name == "colliders"
+                               else _record(v))
+        return out
+    if isinstance(value, dict):
+        return {k: _record(v) for k, v in value.items()}
+    if isinstance(value, tuple):
+        return [_record(v) for v in value]
+    if isinstance(value, Path):
+        return os.path.abspath(value)
+    return value
 
 
 def read_yaml(path: Path):

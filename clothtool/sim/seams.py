@@ -37,10 +37,20 @@ def add_config_seams(builder, mesh_spec, scene):
     if mesh.corner_uv is None and mesh.uv is None:
         raise InputError(f"{mesh.path}: mesh.seams need the panels' rest pattern (texture "
                          "coordinates: OBJ vt, PLY face texcoord or s t)")
-    pairs, stiffness = [], []
+    pairs, stiffness, lines = [], [], None
     for k, seam in enumerate(mesh_spec.seams):
-        a, b, length = check_seam(mesh, seam.a, seam.b, mesh_spec.seam_tolerance,
-                                  f"mesh.seams[{k}]")
+        key, sides = f"mesh.seams[{k}]", []
+        for side, given in (("a", seam.a), ("b", seam.b)):
+            if isinstance(given, str):
+                if lines is None:
+                    lines = _line_groups(mesh)
+                given = group_side(mesh, lines, given, forward=side == "a",
+                                   key=f"{key}.{side}")
+            sides.append(given)
+        if len(sides[0]) != len(sides[1]):
+            raise InputError(f"{mesh.path}: {key}: a has {len(sides[0])} vertices and b "
+                             f"{len(sides[1])}; a[i] is sewn to b[i]")
+        a, b, length = check_seam(mesh, *sides, mesh_spec.seam_tolerance, key)
         pairs.append(np.stack([a, b], axis=1))
         stiffness.append(mesh_spec.sewing.stiffness * length)
     builder.add_stitches(np.concatenate(pairs), np.concatenate(stiffness))
@@ -48,6 +58,67 @@ def add_config_seams(builder, mesh_spec, scene):
     builder.weld_distance = (mesh_spec.sewing.weld if mesh_spec.sewing.weld is not None
                              else WELD * scene.self_collision.thickness)
     check_apart(mesh, builder.stitches)
+
+
+def _line_groups(mesh):
+    from clothtool.io.obj_groups import line_groups
+
+    if mesh.path is None or not str(mesh.path).lower().endswith(".obj"):
+        raise InputError(f"{mesh.path or 'mesh'}: a seam side by group name needs mesh.obj")
+    return line_groups(mesh.path)
+
+
+def group_side(mesh, lines, name, *, forward, key):
+    """The vertex list of the seam side named by OBJ group ``name``: the group's boundary
+    edges (its ``l`` segments, and those of its triangles' edges on the mesh boundary) in
+    their order along one open polyline, running along its panel's boundary (``forward``,
+    side a) or against it (side b), so that a[i] and b[i] meet as an oriented surface's
+    two half-edges do."""
+    edges = boundary_edges(mesh.faces)
+    own = lines.get(name, np.zeros((0, 2), np.int64))
+    faces = (mesh.groups or {}).get(name)
+    if faces is not None:
+        inside = np.zeros(len(mesh.faces), bool)
+        inside[faces] = True
+        own = np.concatenate([own, np.array([e for e, t in edges.items() if inside[t]],
+                                            np.int64).reshape(-1, 2)])
+    where = f"{mesh.path}: {key}"
+    if name not in lines and faces is None:
+        known = sorted(set(lines) | set(mesh.groups or {}))
+        raise InputError(f"{where}: no group {name!r} in the OBJ (its groups: "
+                         f"{', '.join(known) or 'none'})")
+    chain = _polyline(np.unique(np.sort(own, axis=1), axis=0))
+    if chain is None:
+        raise InputError(f"{where}: group {name!r}'s boundary edges are not one open polyline")
+    p, q = chain[0], chain[1]
+    if (p, q) not in edges and (q, p) not in edges:
+        raise InputError(f"{where}: group {name!r}: vertices {p} and {q} are not a boundary "
+                         "edge of the mesh")
+    along = (p, q) in edges
+    return chain if along == forward else chain[::-1]
+
+
+def _polyline(edges):
+    """The vertices of the undirected ``edges`` (K, 2) in order along one open polyline, or
+    None when they are not one (empty, a loop, branched or in pieces)."""
+    if len(edges) == 0:
+        return None
+    ids, degree = np.unique(edges, return_counts=True)
+    ends = ids[degree == 1]
+    if len(ends) != 2 or degree.max() > 2:
+        return None
+    neighbours = {int(v): [] for v in ids}
+    for i, j in edges:
+        neighbours[int(i)].append(int(j))
+        neighbours[int(j)].append(int(i))
+    chain, previous = [int(ends[0])], None
+    while len(chain) <= len(edges):
+        step = [v for v in neighbours[chain[-1]] if v != previous]
+        if not step:
+            break
+        previous = chain[-1]
+        chain.append(step[0])
+    return chain if len(chain) == len(edges) + 1 else None
 
 
 def boundary_edges(faces):
