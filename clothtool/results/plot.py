@@ -22,14 +22,13 @@ from clothtool.results.view3d import (COLLIDER_RGB, draw_meshes, layout, light_d
 
 HISTOGRAM_PAIRS = 100
 FIELD_AMBIENT = 0.65  # the field's colours lit softly: shape visible, colours still readable
-MISSING = "clothtool plot needs matplotlib: pip install 'clothtool[plot]'"
-
-
-def pyplot():
+def pyplot(command="plot"):
+    """matplotlib's pyplot on the headless Agg backend; ``command`` names who needs it."""
     try:
         import matplotlib
     except ImportError:
-        raise InputError(MISSING) from None
+        raise InputError(f"clothtool {command} needs matplotlib: "
+                         "pip install 'clothtool[plot]'") from None
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 

@@ -62,7 +62,7 @@ def render_sequence(frames, output_dir, *, scene=None, fps=None, dpi=100, size=(
         raise InputError(f"{paths[0]}: render draws triangle meshes (PLY or OBJ frames), "
                          "not tetrahedra")
     out = _output_folder(output_dir)
-    plt = pyplot()
+    plt = pyplot("render")
     reader = FrameReader(paths)
     positions = np.stack([reader.positions(k) for k in range(len(paths))])
     faces = reader.faces
