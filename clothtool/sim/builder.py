@@ -226,13 +226,18 @@ class ModelBuilder:
         constant = _bind(terms, pattern)
         damping_terms = damping_constant = None
         beta = self.tri_damping
-        if np.any(beta != beta[0]):  # per-panel damping: D = (1/ĥ) Σ β_e K_e, β_e per element
+        stretch_damping = None
+        if np.any(beta > 0.0):
+            # D = (1/ĥ) Σ β_e K_e, β_e per element, for shear and bending; stretch is damped
+            # by the dissipation potential of β_t k (clothtool.sim.dissipation)
+            stretch_damping = self.tri_stretch[:, :2] * beta[:, None]
             scaled = self.tri_stretch.copy()
-            scaled[:, :2] *= beta[:, None]
+            scaled[:, :2] = 0.0
+            damped_plate = None if plate is None else (*plate[:2], plate[2] * beta[0])
             damping_terms = _elastic_terms(faces, dr_inv, self.area, scaled,
-                                           self.tri_shear * beta, bend_model, None, n, hinge,
-                                           rest_angle, coef * beta[hinge_faces].mean(axis=1),
-                                           weights)
+                                           self.tri_shear * beta, bend_model, damped_plate, n,
+                                           hinge, rest_angle,
+                                           coef * beta[hinge_faces].mean(axis=1), weights)
             damping_constant = _bind(damping_terms, pattern)
         hinged = bend_model in ("dihedral", "quadratic")
         return Model(
@@ -251,6 +256,7 @@ class ModelBuilder:
             stitches=next((t for t in terms if isinstance(t, Stitch)), None),
             origin=self.origin, file_vertex=self.file_vertex,
             damping_terms=damping_terms, damping_constant=damping_constant,
+            stretch_damping=stretch_damping,
         )
 
     def _bending(self):

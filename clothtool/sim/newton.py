@@ -60,6 +60,7 @@ import numpy as np
 from clothtool.errors import NumericalError
 from clothtool.sim.collide import resolve_collisions
 from clothtool.sim.contact import BarrierContact
+from clothtool.sim.dissipation import StretchDissipation
 from clothtool.sim.energy import FemElastic
 from clothtool.sim.filter import apply_filter
 from clothtool.sim.integrator import Integrator, StepReport, gravity_potential, mass_weighted
@@ -113,6 +114,10 @@ class NewtonIntegrator(Integrator):
         # per-panel damping (materials): the terms with their stiffness × β_e
         self._panel_damping = (FemElastic(model, model.damping_terms, model.damping_constant)
                                if model.damping_terms is not None else None)
+        # stretch damping: the dissipation potential Φ of the strain change over the step
+        self._dissipation = (StretchDissipation(model.faces, model.dr_inv, model.area,
+                                                model.stretch_damping, model.tri_slots)
+                             if model.stretch_damping is not None else None)
         self._grad = np.zeros((n, 3))
         self._tmp = np.zeros((n, 3))
         self._damped = np.zeros((n, 3))
@@ -134,6 +139,8 @@ class NewtonIntegrator(Integrator):
         kinetic = 0.5 * mass_weighted(d, d, self.model.mass) / (h_eff * h_eff)
         total = kinetic + gravity_potential(x, self.model.mass, self.model.gravity)
         total += self.elastic.energy(x)
+        if self._dissipation is not None:
+            total += self._dissipation.energy(x)
         if self._damping is not None:
             a = x - base
             total += 0.5 * float(np.sum(a * self._damping.multiply(a, np.empty_like(a))))
@@ -169,6 +176,8 @@ class NewtonIntegrator(Integrator):
         s = start
         for _ in range(MAX_HALVINGS):
             w = self.elastic.energy(x + s * dx) + (contact.energy(s) if contact is not None else 0.0)
+            if self._dissipation is not None:
+                w += self._dissipation.energy(x + s * dx)
             if energy(s, w) <= e0:
                 return s
             s *= 0.5
@@ -231,6 +240,8 @@ class NewtonIntegrator(Integrator):
         matrix, values = self.matrix, self.matrix.values
         x_n, v_n = state.x, state.v
         h_eff, base, target = self.discretisation(state)
+        if self._dissipation is not None:
+            self._dissipation.begin(base, h_eff)
         contact = self.contact
         if solver.newton_iterations == 1:  # exactly Baraff–Witkin's linearised step
             x = x_n.copy()
@@ -267,6 +278,8 @@ class NewtonIntegrator(Integrator):
             if it >= solver.newton_iterations and self._behind(x, moving, goal) <= REACHED:
                 break
             elastic = self.elastic.assemble(x, self._grad, values)
+            if self._dissipation is not None:
+                elastic += self._dissipation.assemble(x, self._grad, values)
             if damped:
                 if it == 0 and from_x_n:
                     self._freeze_damping(values, model.damping / h_eff, x - base, x_n)
