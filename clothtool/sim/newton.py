@@ -3,7 +3,7 @@
 A step of size h minimises over x (Martin et al. 2011, "Example-based elastic
 materials"; Gast et al. 2015, "Optimization integrator for large time steps")
 
-    E(x) = 1/(2ĥ²) ‖x − x̃‖²_M − Σ m_v g·x_v + W(x) + 1/2 (x − b)ᵀ D (x − b)
+    E(x) = 1/(2ĥ²) ‖x − x̃‖²_M − Σ m_v g·x_v + W(x) + Φ(x) + 1/2 (x − b)ᵀ D (x − b)
 
 and sets v_{n+1} = (x − b)/ĥ, where W is the method's elastic energy
 (:mod:`clothtool.sim.energy`) and, per ``solver.integrator``:
@@ -16,10 +16,12 @@ and sets v_{n+1} = (x − b)/ĥ, where W is the method's elastic energy
   step takes its history (x_{−1}, v_{−1}) from a second-order Taylor step back from the
   initial state; later ones from the State.
 
-D = (β/ĥ) K is stiffness-proportional (Rayleigh) damping with β = material.damping
-seconds and K the PSD-projected elastic Hessian at x_n (Baraff & Witkin 1998), so that the
-damping force is −βK v_{n+1} with the integrator's own velocity; collider friction
-uses ĥ the same way (:mod:`clothtool.sim.collide`).
+Damping is stiffness-proportional with β = material.damping seconds (per panel β_e):
+stretch by the dissipation potential Φ of the strain change from b
+(:mod:`clothtool.sim.dissipation`), invariant under rigid motions of each triangle; shear and
+bending by D = (1/ĥ) Σ_e β_e K_e, their PSD-projected Hessians at x_n (Baraff & Witkin
+1998), so that their damping force is −βK v_{n+1} with the integrator's own velocity;
+collider friction uses ĥ the same way (:mod:`clothtool.sim.collide`).
 
 Each Newton step solves (M/ĥ² + K(x) + D) Δx = −∇E(x) by filtered PCG
 (:mod:`clothtool.sim.linalg.pcg`); with ``line_search`` its length is halved (at most
@@ -111,7 +113,7 @@ class NewtonIntegrator(Integrator):
         pattern = self.elastic.pattern
         self.matrix = BlockMatrix(pattern)
         self._damping = BlockMatrix(pattern) if model.damping > 0 else None
-        # per-panel damping (materials): the terms with their stiffness × β_e
+        # shear and bending damping: the terms with their stiffness × β_e (per panel)
         self._panel_damping = (FemElastic(model, model.damping_terms, model.damping_constant)
                                if model.damping_terms is not None else None)
         # stretch damping: the dissipation potential Φ of the strain change over the step
@@ -147,7 +149,8 @@ class NewtonIntegrator(Integrator):
         return total
 
     def along(self, x, dx, base, target, h_eff):
-        """E(x + s dx) as a function of s and W(x + s dx), for the line search. The damping
+        """E(x + s dx) as a function of s and W(x + s dx), for the line search (Φ evaluated
+        inside). The damping
         term is quadratic along the line, ½(a + s dx)ᵀD(a + s dx) with a = x − base: from
         D a (kept in self._damped) and D dx (left in self._tmp), no product per trial."""
         mass, g = self.model.mass, self.model.gravity
@@ -160,10 +163,13 @@ class NewtonIntegrator(Integrator):
         else:
             at_x = cross = curve = 0.0
 
+        dissipation = self._dissipation
+
         def energy(s, w):
             d = x + s * dx - target
-            return (0.5 * mass_weighted(d, d, mass) * inv_h2 + gravity_potential(x + s * dx, mass, g)
-                    + w + at_x + s * cross + 0.5 * s * s * curve)
+            total = (0.5 * mass_weighted(d, d, mass) * inv_h2 + gravity_potential(x + s * dx, mass, g)
+                     + w + at_x + s * cross + 0.5 * s * s * curve)
+            return total + (dissipation.energy(x + s * dx) if dissipation is not None else 0.0)
         return energy
 
     def _line_search(self, x, dx, base, target, elastic, h_eff, start=1.0, contact=None):
@@ -176,8 +182,6 @@ class NewtonIntegrator(Integrator):
         s = start
         for _ in range(MAX_HALVINGS):
             w = self.elastic.energy(x + s * dx) + (contact.energy(s) if contact is not None else 0.0)
-            if self._dissipation is not None:
-                w += self._dissipation.energy(x + s * dx)
             if energy(s, w) <= e0:
                 return s
             s *= 0.5
@@ -210,11 +214,12 @@ class NewtonIntegrator(Integrator):
         grad = np.zeros_like(x0)
         self.elastic.assemble(x0, grad, matrix.values)
         force = -grad
-        if self._panel_damping is not None:  # Σ_e β_e K_e v_0 (per-panel damping)
+        if self._damping is not None:  # Σ_e β_e K_e v_0: shear and bending, then stretch
             self._panel_damping.assemble(x0, np.zeros_like(x0), self._damping.values)
+            if self._dissipation is not None:  # ĥ = 1: Φ's Hessian at b = x_0 is βK_stretch
+                self._dissipation.begin(x0, 1.0)
+                self._dissipation.assemble(x0, np.zeros_like(x0), self._damping.values)
             force -= self._damping.multiply(v0, np.empty_like(v0))
-        elif self._damping is not None:
-            force -= model.damping * matrix.multiply(v0, np.empty_like(v0))
         matrix.add_diagonal(model.mass / (h * h))
         elastic = np.zeros_like(x0)
         filtered_pcg(matrix, force / (h * h), elastic, ConstraintFilter(model.kind, self._normal),
@@ -224,14 +229,11 @@ class NewtonIntegrator(Integrator):
             a0[model.pinned] = 0.0
         return x0 - h * v0 + (0.5 * h * h) * a0, v0 - h * a0
 
-    def _freeze_damping(self, k_values, beta_over_h, displacement, x_n):
-        """D = (β/ĥ) K(x_n) from the blocks of K(x_n), frozen for the step, and D(x − base);
-        with per-panel β, D = (1/ĥ) Σ_e β_e K_e(x_n) from the β-scaled terms."""
-        if self._panel_damping is not None:
-            self._panel_damping.assemble(x_n, np.zeros_like(x_n), self._damping.values)
-            self._damping.values *= beta_over_h / self.model.damping
-        else:
-            np.multiply(k_values, beta_over_h, out=self._damping.values)
+    def _freeze_damping(self, h_eff, displacement, x_n):
+        """D = (1/ĥ) Σ_e β_e K_e(x_n) from the β-scaled shear and bending terms, frozen for
+        the step, and D(x − base)."""
+        self._panel_damping.assemble(x_n, np.zeros_like(x_n), self._damping.values)
+        self._damping.values *= 1.0 / h_eff
         self._damping.multiply(displacement, self._damped)
 
     def step(self, state):
@@ -270,19 +272,17 @@ class NewtonIntegrator(Integrator):
         damped = self._damping is not None
         from_x_n = solver.newton_iterations == 1 or contact is not None  # x starts equal to x_n
         if damped and not from_x_n:
-            if self._panel_damping is None:  # per-panel damping assembles its own terms at x_n
-                self.elastic.assemble(x_n, self._grad, values)
-            self._freeze_damping(values, model.damping / h_eff, x - base, x_n)
+            self._freeze_damping(h_eff, x - base, x_n)
         # moving pins and colliders still short of their goal get three times as many more steps
         for it in range(4 * solver.newton_iterations):
             if it >= solver.newton_iterations and self._behind(x, moving, goal) <= REACHED:
                 break
             elastic = self.elastic.assemble(x, self._grad, values)
-            if self._dissipation is not None:
-                elastic += self._dissipation.assemble(x, self._grad, values)
+            if self._dissipation is not None:  # Φ's value enters E in along()
+                self._dissipation.assemble(x, self._grad, values)
             if damped:
                 if it == 0 and from_x_n:
-                    self._freeze_damping(values, model.damping / h_eff, x - base, x_n)
+                    self._freeze_damping(h_eff, x - base, x_n)
                 values += self._damping.values
             matrix.add_diagonal(inertia)
             # ∇E = M(x − x̃)/ĥ² − M g + ∇W + D(x − base)
