@@ -6,6 +6,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from clothtool.errors import InputError
 from clothtool.sim.builder import build_model
 from clothtool.sim.config import load_config
 from clothtool.sim.dissipation import (StretchDissipation, column_lengths, dissipation_element,
@@ -101,14 +102,15 @@ def test_first_order_it_is_the_frozen_stretch_damping():
 
 def test_the_mesh_kernels_sum_the_elements():
     cfg = load_config({"mesh": {"grid": {"nx": 5, "ny": 4, "plane": "xz"}},
-                       "material": {"damping": 0.02, "stretch": [800.0, 500.0]}})
+                       "material": {"damping": 0.02, "stretch": [800.0, 500.0],
+                                    "damping_model": "strain"}})
     model = build_model(cfg)
     rng = np.random.default_rng(5)
     base = model.mesh.positions + rng.normal(0, 0.02, model.mesh.positions.shape)
     x = base + rng.normal(0, 0.02, base.shape)
     term = StretchDissipation(model.faces, model.dr_inv, model.area, model.stretch_damping,
                               model.tri_slots)
-    term.begin(base, 0.01)
+    term.begin(base, None, 0.01)
     np.testing.assert_allclose(model.stretch_damping, 0.02 * np.array([[800.0, 500.0]]).repeat(
         len(model.faces), axis=0))
     matrix = BlockMatrix(model.pattern)
@@ -136,16 +138,28 @@ def test_the_mesh_kernels_sum_the_elements():
 @pytest.mark.parametrize("substeps", [1, 16])
 def test_a_crumpled_sheet_relaxes_by_frame_8_at_one_step_per_frame(substeps):
     """A 16×16 sheet released from random displacements of up to 0.6 cell (folded and
-    inverted triangles, fibres stretched up to 2.7×): the largest principal stretch is at
-    most 1.1 by frame 8, at one step per frame as at 16 (with damping frozen at the start
-    of the step, 1.34 at one step per frame)."""
+    inverted triangles, fibres stretched up to 2.7×), ``damping_model: strain``: the largest
+    principal stretch is at most 1.1 by frame 8, at one step per frame as at 16 (with the
+    damping frozen at the start of the step, 1.34 at one step per frame)."""
     def crumple(model, state):
         state.x += np.random.default_rng(0).uniform(-0.6, 0.6, state.x.shape) / 15
 
     cfg = load_config({"mesh": {"grid": {"nx": 16, "ny": 16, "plane": "xz"}},
+                       "material": {"damping_model": "strain"},
                        "solver": {"substeps": substeps}, "time": {"fps": 30, "frames": 8}})
     model = build_model(cfg)
     run = run_in_memory(cfg, (0, 8), warmup=False, initial=crumple)
     assert run.ok, run.blew_up
     assert max_principal_stretch(run.positions[0], model.faces, model.dr_inv) > 2.5
     assert max_principal_stretch(run.positions[8], model.faces, model.dr_inv) <= 1.1
+
+
+def test_strain_damping_is_the_implicit_methods_and_off_by_default():
+    base = {"mesh": {"grid": {"nx": 4, "ny": 4}}}
+    assert build_model(load_config(base)).stretch_damping is None  # frozen βK(x_n)
+    strain = {**base, "material": {"damping_model": "strain"}}
+    assert build_model(load_config(strain)).stretch_damping is not None
+    for method in ("explicit", "vbd", "mass-spring"):
+        with pytest.raises(InputError, match=rf"solver.method: '{method}' does not support "
+                                             r"material.damping_model: strain"):
+            load_config({**strain, "solver": {"method": method}})

@@ -228,11 +228,13 @@ class ModelBuilder:
         beta = self.tri_damping
         stretch_damping = None
         if np.any(beta > 0.0):
-            # D = (1/ĥ) Σ β_e K_e, β_e per element, for shear and bending; stretch is damped
-            # by the dissipation potential of β_t k (clothtool.sim.dissipation)
-            stretch_damping = self.tri_stretch[:, :2] * beta[:, None]
+            # D = (1/ĥ) Σ β_e K_e, β_e per element; with damping_model: strain, stretch is
+            # damped by the dissipation potential of β_t k instead (clothtool.sim.dissipation)
             scaled = self.tri_stretch.copy()
-            scaled[:, :2] = 0.0
+            scaled[:, :2] *= beta[:, None]
+            if self.material.damping_model == "strain":
+                stretch_damping = scaled[:, :2].copy()
+                scaled[:, :2] = 0.0
             damped_plate = None if plate is None else (*plate[:2], plate[2] * beta[0])
             damping_terms = _elastic_terms(faces, dr_inv, self.area, scaled,
                                            self.tri_shear * beta, bend_model, damped_plate, n,

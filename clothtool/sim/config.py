@@ -31,6 +31,7 @@ __all__ = ["load_config", "as_dict", "Config", "SECTIONS", "COLLIDER_KINDS"]
 
 PLANES = ("xy", "xz", "yz")
 BEND_MODELS = ("hessian", "dihedral", "quadratic")
+DAMPING_MODELS = ("frozen", "strain")  # stretch damping: βK(x_n) frozen, or the strain-change potential
 STANDARD_GRAVITY = 9.81  # m/s², of bending_length → bend (k_b = ρ g c³)
 METHODS = tuple(methods.METHODS)
 PRECONDITIONERS = ("jacobi", "multigrid")
@@ -142,6 +143,7 @@ class Material(Section):
     bend: float = setting(1.0e-5, non_negative)
     damping: float = setting(0.01, non_negative)
     bend_model: str = setting("dihedral", choice(BEND_MODELS))
+    damping_model: str = setting("frozen", choice(DAMPING_MODELS))
     bending_length: float | None = setting(None, positive)
 
     def finish(self, given, key):

@@ -7,15 +7,20 @@ sheet swinging) those directions are stale: the damping resists rotations as if 
 were stretching, and at one step per frame a crumpled sheet stays stretched 1.34× for
 eight frames. Following Brown, Overby, Narain & Kaufman 2018 ("Accurate dissipative
 forces in optimization integrators", SCA), the stretch part of the damping is instead the
-potential of the actual strain change from the step's base b (v = (x − b)/ĥ):
+potential of the actual strain change over the step,
 
-    Φ(x) = 1/(2ĥ) Σ_t A_t [β_t k_u (‖f0(x)‖ − ‖f0(b)‖)² + β_t k_v (‖f1(x)‖ − ‖f1(b)‖)²]
+    Φ(x) = 1/(2ĥ) Σ_t A_t [β_t k_u (‖f0(x)‖ − L_0)² + β_t k_v (‖f1(x)‖ − L_1)²]
 
-(f0, f1 the columns of F, :mod:`clothtool.sim.membrane`), invariant under rigid motions
-of each triangle; to first order in x − b it is the frozen form with K's stretch part
-k f̂f̂ᵀ. Its gradient per column is (A βk/ĥ)(‖f‖ − ‖f(b)‖) f̂ through ∂f/∂x, and its Hessian
-(A βk/ĥ)[f̂f̂ᵀ + c(I − f̂f̂ᵀ)], c = 1 − ‖f(b)‖/‖f‖ (the membrane's stretch block with rest
-length ‖f(b)‖); the solver takes it with c clamped at 0 (PSD).
+(f0, f1 the columns of F, :mod:`clothtool.sim.membrane`), with the integrator's own
+strain rate: L = ‖f(x_n)‖ for backward Euler, the BDF2 combination (4‖f(x_n)‖ −
+‖f(x_{n−1})‖)/3 for BDF2 (so (‖f(x)‖ − L)/ĥ is BDF2's derivative of the fibre length);
+on BDF2's first step L = ‖f(x_0)‖, since its Taylor history x_{−1} is no shape of the
+cloth's (pinned vertices stay while the rest moves ½h²a_0: at h = 1 s L came out negative
+near the pins and Newton did not converge in 100 iterations).
+It is invariant under rigid motions of each triangle; to first order it is the frozen form
+with K's stretch part k f̂f̂ᵀ. Its gradient per column is (A βk/ĥ)(‖f‖ − L) f̂ through
+∂f/∂x, and its Hessian (A βk/ĥ)[f̂f̂ᵀ + c(I − f̂f̂ᵀ)], c = 1 − L/‖f‖ (the membrane's stretch
+block with rest length L); the solver takes it with c clamped at 0 (PSD).
 """
 
 import numpy as np
@@ -40,7 +45,7 @@ def column_lengths(x, faces, dr_inv, out):
 
 @njit(cache=True)
 def dissipation_element(x0, x1, x2, dr_inv, area, coef, length, exact, grad, hess):
-    """Φ of one triangle, coef = (β k_u/ĥ, β k_v/ĥ), length = (‖f0(b)‖, ‖f1(b)‖); writes its
+    """Φ of one triangle, coef = (β k_u/ĥ, β k_v/ĥ), length = (L_0, L_1); writes its
     gradient (9,) and Hessian (9, 9) (vertex-major): exact with ``exact``, else with c
     clamped at 0."""
     f0, f1 = deformation_gradient(x0, x1, x2, dr_inv)
@@ -108,7 +113,7 @@ def dissipation_energy(x, faces, dr_inv, area, coef, length):
 
 class StretchDissipation:
     """Φ over the Model's triangles with β_t k per triangle (``stretch_damping`` (M, 2));
-    :meth:`begin` sets the step's base b and ĥ."""
+    :meth:`begin` sets the step's ĥ and fibre lengths."""
 
     def __init__(self, faces, dr_inv, area, stretch_damping, slots):
         self.faces, self.dr_inv, self.area, self.slots = faces, dr_inv, area, slots
@@ -116,9 +121,17 @@ class StretchDissipation:
         self.coef = np.zeros_like(self.damping)
         self.length = np.zeros_like(self.damping)
 
-    def begin(self, base, h_eff):
+    def begin(self, x_n, x_prev, h_eff):
+        """The step's ĥ and fibre lengths L_b: L(x_n) for backward Euler (x_prev None), the
+        BDF2 combination (4L(x_n) − L(x_{n−1}))/3 of the strains (not the strain of the
+        extrapolated positions, which a large step makes no shape of the cloth's), ≥ 0."""
         np.multiply(self.damping, 1.0 / h_eff, out=self.coef)
-        column_lengths(base, self.faces, self.dr_inv, self.length)
+        column_lengths(x_n, self.faces, self.dr_inv, self.length)
+        if x_prev is not None:
+            self.length *= 4.0 / 3.0
+            self.length -= column_lengths(x_prev, self.faces, self.dr_inv,
+                                          np.empty_like(self.length)) / 3.0
+            np.maximum(self.length, 0.0, out=self.length)
 
     def energy(self, x):
         return dissipation_energy(x, self.faces, self.dr_inv, self.area, self.coef, self.length)

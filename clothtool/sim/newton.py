@@ -17,11 +17,12 @@ and sets v_{n+1} = (x − b)/ĥ, where W is the method's elastic energy
   initial state; later ones from the State.
 
 Damping is stiffness-proportional with β = material.damping seconds (per panel β_e):
-stretch by the dissipation potential Φ of the strain change from b
-(:mod:`clothtool.sim.dissipation`), invariant under rigid motions of each triangle; shear and
-bending by D = (1/ĥ) Σ_e β_e K_e, their PSD-projected Hessians at x_n (Baraff & Witkin
-1998), so that their damping force is −βK v_{n+1} with the integrator's own velocity;
-collider friction uses ĥ the same way (:mod:`clothtool.sim.collide`).
+D = (1/ĥ) Σ_e β_e K_e, the terms' PSD-projected Hessians at x_n (Baraff & Witkin 1998),
+so that the damping force is −βK v_{n+1} with the integrator's own velocity, and Φ = 0;
+with ``material.damping_model: strain`` stretch is taken out of D and damped by the
+dissipation potential Φ of the fibres' length change (:mod:`clothtool.sim.dissipation`),
+invariant under rigid motions of each triangle. Collider friction uses ĥ the same way
+(:mod:`clothtool.sim.collide`).
 
 Each Newton step solves (M/ĥ² + K(x) + D) Δx = −∇E(x) by filtered PCG
 (:mod:`clothtool.sim.linalg.pcg`); with ``line_search`` its length is halved (at most
@@ -217,7 +218,7 @@ class NewtonIntegrator(Integrator):
         if self._damping is not None:  # Σ_e β_e K_e v_0: shear and bending, then stretch
             self._panel_damping.assemble(x0, np.zeros_like(x0), self._damping.values)
             if self._dissipation is not None:  # ĥ = 1: Φ's Hessian at b = x_0 is βK_stretch
-                self._dissipation.begin(x0, 1.0)
+                self._dissipation.begin(x0, None, 1.0)
                 self._dissipation.assemble(x0, np.zeros_like(x0), self._damping.values)
             force -= self._damping.multiply(v0, np.empty_like(v0))
         matrix.add_diagonal(model.mass / (h * h))
@@ -242,8 +243,8 @@ class NewtonIntegrator(Integrator):
         matrix, values = self.matrix, self.matrix.values
         x_n, v_n = state.x, state.v
         h_eff, base, target = self.discretisation(state)
-        if self._dissipation is not None:
-            self._dissipation.begin(base, h_eff)
+        if self._dissipation is not None:  # BDF2's x_{n−1}; none at the first step
+            self._dissipation.begin(x_n, state.x_prev if self.bdf2 else None, h_eff)
         contact = self.contact
         if solver.newton_iterations == 1:  # exactly Baraff–Witkin's linearised step
             x = x_n.copy()
