@@ -227,12 +227,14 @@ class ModelBuilder:
         damping_terms = damping_constant = None
         beta = self.tri_damping
         stretch_damping = None
-        if np.any(beta > 0.0):
-            # D = (1/ĥ) Σ β_e K_e, β_e per element; with damping_model: strain, stretch is
-            # damped by the dissipation potential of β_t k instead (clothtool.sim.dissipation)
+        strain = self.material.damping_model == "strain" and np.any(beta > 0.0)
+        if strain or np.any(beta != beta[0]):
+            # per-panel damping: D = (1/ĥ) Σ β_e K_e, β_e per element; with damping_model:
+            # strain, stretch is damped by the dissipation potential of β_t k instead
+            # (clothtool.sim.dissipation)
             scaled = self.tri_stretch.copy()
             scaled[:, :2] *= beta[:, None]
-            if self.material.damping_model == "strain":
+            if strain:
                 stretch_damping = scaled[:, :2].copy()
                 scaled[:, :2] = 0.0
             damped_plate = None if plate is None else (*plate[:2], plate[2] * beta[0])

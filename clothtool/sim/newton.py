@@ -16,13 +16,13 @@ and sets v_{n+1} = (x − b)/ĥ, where W is the method's elastic energy
   step takes its history (x_{−1}, v_{−1}) from a second-order Taylor step back from the
   initial state; later ones from the State.
 
-Damping is stiffness-proportional with β = material.damping seconds (per panel β_e):
-D = (1/ĥ) Σ_e β_e K_e, the terms' PSD-projected Hessians at x_n (Baraff & Witkin 1998),
-so that the damping force is −βK v_{n+1} with the integrator's own velocity, and Φ = 0;
-with ``material.damping_model: strain`` stretch is taken out of D and damped by the
-dissipation potential Φ of the fibres' length change (:mod:`clothtool.sim.dissipation`),
-invariant under rigid motions of each triangle. Collider friction uses ĥ the same way
-(:mod:`clothtool.sim.collide`).
+D = (β/ĥ) K is stiffness-proportional (Rayleigh) damping with β = material.damping
+seconds and K the PSD-projected elastic Hessian at x_n (Baraff & Witkin 1998), so that the
+damping force is −βK v_{n+1} with the integrator's own velocity, and Φ = 0; with
+``material.damping_model: strain`` stretch is taken out of D (its terms then carry β, as
+per-panel damping's do) and damped by the dissipation potential Φ of the fibres' length
+change (:mod:`clothtool.sim.dissipation`), invariant under rigid motions of each triangle.
+Collider friction uses ĥ the same way (:mod:`clothtool.sim.collide`).
 
 Each Newton step solves (M/ĥ² + K(x) + D) Δx = −∇E(x) by filtered PCG
 (:mod:`clothtool.sim.linalg.pcg`); with ``line_search`` its length is halved (at most
@@ -114,10 +114,10 @@ class NewtonIntegrator(Integrator):
         pattern = self.elastic.pattern
         self.matrix = BlockMatrix(pattern)
         self._damping = BlockMatrix(pattern) if model.damping > 0 else None
-        # shear and bending damping: the terms with their stiffness × β_e (per panel)
+        # per-panel damping (materials): the terms with their stiffness × β_e
         self._panel_damping = (FemElastic(model, model.damping_terms, model.damping_constant)
                                if model.damping_terms is not None else None)
-        # stretch damping: the dissipation potential Φ of the strain change over the step
+        # damping_model: strain: the dissipation potential Φ of the fibres' length change
         self._dissipation = (StretchDissipation(model.faces, model.dr_inv, model.area,
                                                 model.stretch_damping, model.tri_slots)
                              if model.stretch_damping is not None else None)
@@ -215,12 +215,14 @@ class NewtonIntegrator(Integrator):
         grad = np.zeros_like(x0)
         self.elastic.assemble(x0, grad, matrix.values)
         force = -grad
-        if self._damping is not None:  # Σ_e β_e K_e v_0: shear and bending, then stretch
+        if self._panel_damping is not None:  # Σ_e β_e K_e v_0 (per-panel damping)
             self._panel_damping.assemble(x0, np.zeros_like(x0), self._damping.values)
             if self._dissipation is not None:  # ĥ = 1: Φ's Hessian at b = x_0 is βK_stretch
                 self._dissipation.begin(x0, None, 1.0)
                 self._dissipation.assemble(x0, np.zeros_like(x0), self._damping.values)
             force -= self._damping.multiply(v0, np.empty_like(v0))
+        elif self._damping is not None:
+            force -= model.damping * matrix.multiply(v0, np.empty_like(v0))
         matrix.add_diagonal(model.mass / (h * h))
         elastic = np.zeros_like(x0)
         filtered_pcg(matrix, force / (h * h), elastic, ConstraintFilter(model.kind, self._normal),
@@ -230,11 +232,14 @@ class NewtonIntegrator(Integrator):
             a0[model.pinned] = 0.0
         return x0 - h * v0 + (0.5 * h * h) * a0, v0 - h * a0
 
-    def _freeze_damping(self, h_eff, displacement, x_n):
-        """D = (1/ĥ) Σ_e β_e K_e(x_n) from the β-scaled shear and bending terms, frozen for
-        the step, and D(x − base)."""
-        self._panel_damping.assemble(x_n, np.zeros_like(x_n), self._damping.values)
-        self._damping.values *= 1.0 / h_eff
+    def _freeze_damping(self, k_values, beta_over_h, displacement, x_n):
+        """D = (β/ĥ) K(x_n) from the blocks of K(x_n), frozen for the step, and D(x − base);
+        with per-panel β, D = (1/ĥ) Σ_e β_e K_e(x_n) from the β-scaled terms."""
+        if self._panel_damping is not None:
+            self._panel_damping.assemble(x_n, np.zeros_like(x_n), self._damping.values)
+            self._damping.values *= beta_over_h / self.model.damping
+        else:
+            np.multiply(k_values, beta_over_h, out=self._damping.values)
         self._damping.multiply(displacement, self._damped)
 
     def step(self, state):
@@ -273,7 +278,9 @@ class NewtonIntegrator(Integrator):
         damped = self._damping is not None
         from_x_n = solver.newton_iterations == 1 or contact is not None  # x starts equal to x_n
         if damped and not from_x_n:
-            self._freeze_damping(h_eff, x - base, x_n)
+            if self._panel_damping is None:  # per-panel damping assembles its own terms at x_n
+                self.elastic.assemble(x_n, self._grad, values)
+            self._freeze_damping(values, model.damping / h_eff, x - base, x_n)
         # moving pins and colliders still short of their goal get three times as many more steps
         for it in range(4 * solver.newton_iterations):
             if it >= solver.newton_iterations and self._behind(x, moving, goal) <= REACHED:
@@ -283,7 +290,7 @@ class NewtonIntegrator(Integrator):
                 self._dissipation.assemble(x, self._grad, values)
             if damped:
                 if it == 0 and from_x_n:
-                    self._freeze_damping(h_eff, x - base, x_n)
+                    self._freeze_damping(values, model.damping / h_eff, x - base, x_n)
                 values += self._damping.values
             matrix.add_diagonal(inertia)
             # ∇E = M(x − x̃)/ĥ² − M g + ∇W + D(x − base)
