@@ -228,13 +228,23 @@ class ModelBuilder:
         constant = _bind(terms, pattern)
         damping_terms = damping_constant = None
         beta = self.tri_damping
-        if np.any(beta != beta[0]):  # per-panel damping: D = (1/ĥ) Σ β_e K_e, β_e per element
+        stretch_damping = None
+        strain = self.material.damping_model == "strain" and np.any(beta > 0.0)
+        if strain or np.any(beta != beta[0]):
+            # per-panel damping: D = (1/ĥ) Σ β_e K_e, β_e per element; with damping_model:
+            # strain, stretch is damped by the dissipation potential of β_t k instead
+            # (clothtool.sim.dissipation)
             scaled = self.tri_stretch.copy()
             scaled[:, :2] *= beta[:, None]
+            if strain:
+                stretch_damping = scaled[:, :2].copy()
+                scaled[:, :2] = 0.0
+            damped_plate = None if plate is None else (*plate[:2], plate[2] * beta[0])
             damping_terms = _elastic_terms(faces, dr_inv, self.area, scaled,
-                                           self.tri_shear * beta, bend_model, None, n, hinge,
-                                           rest_angle, coef * beta[hinge_faces].mean(axis=1),
-                                           weights, membrane_model)
+                                           self.tri_shear * beta, bend_model, damped_plate, n,
+                                           hinge, rest_angle,
+                                           coef * beta[hinge_faces].mean(axis=1), weights,
+                                           membrane_model)
             damping_constant = _bind(damping_terms, pattern)
         hinged = bend_model in ("dihedral", "quadratic")
         return Model(
@@ -253,6 +263,7 @@ class ModelBuilder:
             stitches=next((t for t in terms if isinstance(t, Stitch)), None),
             origin=self.origin, file_vertex=self.file_vertex,
             damping_terms=damping_terms, damping_constant=damping_constant,
+            stretch_damping=stretch_damping,
         )
 
     def _membrane_model(self):
@@ -316,7 +327,8 @@ def _elastic_terms(faces, dr_inv, area, stretch, shear, bend_model, plate, n, hi
     """The membrane and bending terms (none whose stiffness is zero)."""
     terms = []
     if membrane_model == "nodal":  # stretch on the vertices' smoothed metric, shear per triangle
-        terms.append(NodalMembrane(faces, dr_inv, area, n, stretch, np.zeros_like(shear)))
+        if np.any(stretch[:, :2] > 0.0):
+            terms.append(NodalMembrane(faces, dr_inv, area, n, stretch, np.zeros_like(shear)))
         if np.any(shear > 0.0):
             shear_only = stretch.copy()
             shear_only[:, :2] = 0.0

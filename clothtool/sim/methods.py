@@ -40,7 +40,9 @@ MATERIALS = "per-panel materials"  # materials: per-triangle stiffness, density 
 SEAMS = "seams"  # mesh.seams: the stitch term and the weld (clothtool.sim.seams)
 ATTACH = "attach"  # scene.attach: vertices carried by a collider's surface (moving pins)
 PANEL_DAMPING = "per-panel damping"  # materials.NAME.damping other than material.damping
-FEATURES = (FRICTION, CONTACT, MOVING_PINS, BDF2, MATERIALS, SEAMS, ATTACH, PANEL_DAMPING)
+STRAIN_DAMPING = "strain damping"  # material.damping_model: strain (clothtool.sim.dissipation)
+FEATURES = (FRICTION, CONTACT, MOVING_PINS, BDF2, MATERIALS, SEAMS, ATTACH, PANEL_DAMPING,
+            STRAIN_DAMPING)
 
 
 @dataclass(frozen=True)
@@ -58,7 +60,7 @@ class Method:
 METHODS = {m.name: m for m in (
     Method("implicit", "clothtool.sim.solvers.implicit:ImplicitEuler",
            frozenset({FRICTION, CONTACT, MOVING_PINS, BDF2, MATERIALS, SEAMS, ATTACH,
-                      PANEL_DAMPING}),
+                      PANEL_DAMPING, STRAIN_DAMPING}),
            "finite-element cloth, BDF2 or backward Euler, Newton + filtered PCG"),
     Method("mass-spring", "clothtool.sim.solvers.mass_spring:MassSpringImplicit",
            frozenset({BDF2}), "spring network, BDF2 or backward Euler, Newton + PCG"),
@@ -98,6 +100,8 @@ def requested_features(config, given=()):
     for name, panel in config.materials.items():
         if panel.damping is not None and panel.damping != config.material.damping:
             out.append((PANEL_DAMPING, f"materials.{name}.damping"))
+    if config.material.damping_model == "strain":
+        out.append((STRAIN_DAMPING, "material.damping_model: strain"))
     if config.mesh.seams:
         out.append((SEAMS, "mesh.seams"))
     if config.scene.attach:

@@ -51,8 +51,9 @@ class Model:
     tri_stretch: np.ndarray | None = None  # (M, 4) each triangle's k_u, k_v, b_u, b_v
     tri_shear: np.ndarray | None = None  # (M,) each triangle's k_shear
     stitches: object = None  # the Stitch term while a garment is sewn (clothtool.sim.seams)
-    damping_terms: list | None = None  # per-panel damping: the terms with stiffness × β_e
+    damping_terms: list | None = None  # shear and bending damping: the terms with stiffness × β_e
     damping_constant: np.ndarray | None = None  # their constant Hessian blocks
+    stretch_damping: np.ndarray | None = None  # (M, 2) β_t k_u, β_t k_v (clothtool.sim.dissipation)
     origin: np.ndarray | None = None  # (N, 3) positions at t = 0 when not mesh.positions (a weld)
     file_vertex: np.ndarray | None = None  # (N_file,) model vertex of each file vertex (a weld)
 

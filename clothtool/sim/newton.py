@@ -3,7 +3,7 @@
 A step of size h minimises over x (Martin et al. 2011, "Example-based elastic
 materials"; Gast et al. 2015, "Optimization integrator for large time steps")
 
-    E(x) = 1/(2ĥ²) ‖x − x̃‖²_M − Σ m_v g·x_v + W(x) + 1/2 (x − b)ᵀ D (x − b)
+    E(x) = 1/(2ĥ²) ‖x − x̃‖²_M − Σ m_v g·x_v + W(x) + Φ(x) + 1/2 (x − b)ᵀ D (x − b)
 
 and sets v_{n+1} = (x − b)/ĥ, where W is the method's elastic energy
 (:mod:`clothtool.sim.energy`) and, per ``solver.integrator``:
@@ -18,8 +18,11 @@ and sets v_{n+1} = (x − b)/ĥ, where W is the method's elastic energy
 
 D = (β/ĥ) K is stiffness-proportional (Rayleigh) damping with β = material.damping
 seconds and K the PSD-projected elastic Hessian at x_n (Baraff & Witkin 1998), so that the
-damping force is −βK v_{n+1} with the integrator's own velocity; collider friction
-uses ĥ the same way (:mod:`clothtool.sim.collide`).
+damping force is −βK v_{n+1} with the integrator's own velocity, and Φ = 0; with
+``material.damping_model: strain`` stretch is taken out of D (its terms then carry β, as
+per-panel damping's do) and damped by the dissipation potential Φ of the fibres' length
+change (:mod:`clothtool.sim.dissipation`), invariant under rigid motions of each triangle.
+Collider friction uses ĥ the same way (:mod:`clothtool.sim.collide`).
 
 Each Newton step solves (M/ĥ² + K(x) + D) Δx = −∇E(x) by filtered PCG
 (:mod:`clothtool.sim.linalg.pcg`); with ``line_search`` its length is halved (at most
@@ -60,6 +63,7 @@ import numpy as np
 from clothtool.errors import NumericalError
 from clothtool.sim.collide import resolve_collisions
 from clothtool.sim.contact import BarrierContact
+from clothtool.sim.dissipation import StretchDissipation
 from clothtool.sim.energy import FemElastic
 from clothtool.sim.filter import apply_filter
 from clothtool.sim.integrator import Integrator, StepReport, gravity_potential, mass_weighted
@@ -113,6 +117,10 @@ class NewtonIntegrator(Integrator):
         # per-panel damping (materials): the terms with their stiffness × β_e
         self._panel_damping = (FemElastic(model, model.damping_terms, model.damping_constant)
                                if model.damping_terms is not None else None)
+        # damping_model: strain: the dissipation potential Φ of the fibres' length change
+        self._dissipation = (StretchDissipation(model.faces, model.dr_inv, model.area,
+                                                model.stretch_damping, model.tri_slots)
+                             if model.stretch_damping is not None else None)
         self._grad = np.zeros((n, 3))
         self._tmp = np.zeros((n, 3))
         self._damped = np.zeros((n, 3))
@@ -134,13 +142,16 @@ class NewtonIntegrator(Integrator):
         kinetic = 0.5 * mass_weighted(d, d, self.model.mass) / (h_eff * h_eff)
         total = kinetic + gravity_potential(x, self.model.mass, self.model.gravity)
         total += self.elastic.energy(x)
+        if self._dissipation is not None:
+            total += self._dissipation.energy(x)
         if self._damping is not None:
             a = x - base
             total += 0.5 * float(np.sum(a * self._damping.multiply(a, np.empty_like(a))))
         return total
 
     def along(self, x, dx, base, target, h_eff):
-        """E(x + s dx) as a function of s and W(x + s dx), for the line search. The damping
+        """E(x + s dx) as a function of s and W(x + s dx), for the line search (Φ evaluated
+        inside). The damping
         term is quadratic along the line, ½(a + s dx)ᵀD(a + s dx) with a = x − base: from
         D a (kept in self._damped) and D dx (left in self._tmp), no product per trial."""
         mass, g = self.model.mass, self.model.gravity
@@ -153,10 +164,13 @@ class NewtonIntegrator(Integrator):
         else:
             at_x = cross = curve = 0.0
 
+        dissipation = self._dissipation
+
         def energy(s, w):
             d = x + s * dx - target
-            return (0.5 * mass_weighted(d, d, mass) * inv_h2 + gravity_potential(x + s * dx, mass, g)
-                    + w + at_x + s * cross + 0.5 * s * s * curve)
+            total = (0.5 * mass_weighted(d, d, mass) * inv_h2 + gravity_potential(x + s * dx, mass, g)
+                     + w + at_x + s * cross + 0.5 * s * s * curve)
+            return total + (dissipation.energy(x + s * dx) if dissipation is not None else 0.0)
         return energy
 
     def _line_search(self, x, dx, base, target, elastic, h_eff, start=1.0, contact=None):
@@ -203,6 +217,9 @@ class NewtonIntegrator(Integrator):
         force = -grad
         if self._panel_damping is not None:  # Σ_e β_e K_e v_0 (per-panel damping)
             self._panel_damping.assemble(x0, np.zeros_like(x0), self._damping.values)
+            if self._dissipation is not None:  # ĥ = 1: Φ's Hessian at b = x_0 is βK_stretch
+                self._dissipation.begin(x0, None, 1.0)
+                self._dissipation.assemble(x0, np.zeros_like(x0), self._damping.values)
             force -= self._damping.multiply(v0, np.empty_like(v0))
         elif self._damping is not None:
             force -= model.damping * matrix.multiply(v0, np.empty_like(v0))
@@ -231,6 +248,8 @@ class NewtonIntegrator(Integrator):
         matrix, values = self.matrix, self.matrix.values
         x_n, v_n = state.x, state.v
         h_eff, base, target = self.discretisation(state)
+        if self._dissipation is not None:  # BDF2's x_{n−1}; none at the first step
+            self._dissipation.begin(x_n, state.x_prev if self.bdf2 else None, h_eff)
         contact = self.contact
         if solver.newton_iterations == 1:  # exactly Baraff–Witkin's linearised step
             x = x_n.copy()
@@ -267,6 +286,8 @@ class NewtonIntegrator(Integrator):
             if it >= solver.newton_iterations and self._behind(x, moving, goal) <= REACHED:
                 break
             elastic = self.elastic.assemble(x, self._grad, values)
+            if self._dissipation is not None:  # Φ's value enters E in along()
+                self._dissipation.assemble(x, self._grad, values)
             if damped:
                 if it == 0 and from_x_n:
                     self._freeze_damping(values, model.damping / h_eff, x - base, x_n)
