@@ -26,7 +26,7 @@ block with rest length L); the solver takes it with c clamped at 0 (PSD).
 import numpy as np
 from numba import njit
 
-from clothtool.sim.membrane import deformation_gradient
+from clothtool.sim.membrane import add_triangle, deformation_gradient
 from clothtool.vec3 import dot, load
 
 EPS = 1e-12
@@ -86,15 +86,7 @@ def dissipation_assemble(x, faces, dr_inv, area, coef, length, slots, grad, valu
         total += dissipation_element(load(x, faces[t, 0]), load(x, faces[t, 1]),
                                      load(x, faces[t, 2]), dr_inv[t], area[t], coef[t],
                                      length[t], False, g, hess)
-        for a in range(3):
-            v = faces[t, a]
-            for p in range(3):
-                grad[v, p] += g[3 * a + p]
-            for b in range(3):
-                block = values[slots[t, 3 * a + b]]
-                for p in range(3):
-                    for q in range(3):
-                        block[p, q] += hess[3 * a + p, 3 * b + q]
+        add_triangle(faces[t], slots[t], g, hess, grad, values)
     return total
 
 

@@ -255,6 +255,21 @@ def _stretch_vertex(f, k, b, weight, hess):
 
 
 @njit(cache=True)
+def add_triangle(face, slot, g, hess, grad, values):
+    """Adds a triangle's gradient g (9,) to grad (N, 3) and its Hessian hess (9, 9) to the
+    matrix blocks values[slot[3a + b]] of its corners a, b."""
+    for a in range(3):
+        v = face[a]
+        for p in range(3):
+            grad[v, p] += g[3 * a + p]
+        for b in range(3):
+            block = values[slot[3 * a + b]]
+            for p in range(3):
+                for q in range(3):
+                    block[p, q] += hess[3 * a + p, 3 * b + q]
+
+
+@njit(cache=True)
 def membrane_assemble(x, faces, dr_inv, area, stretch, k_shear, slots, grad, values):
     """W_membrane(x); adds its gradient to grad (N, 3) and projected Hessian blocks to values
     (``stretch`` (M, 4), ``k_shear`` (M,) per triangle, as in every mesh kernel here)."""
@@ -265,15 +280,7 @@ def membrane_assemble(x, faces, dr_inv, area, stretch, k_shear, slots, grad, val
     for t in range(faces.shape[0]):
         total += membrane_element(load(x, faces[t, 0]), load(x, faces[t, 1]), load(x, faces[t, 2]),
                                   dr_inv[t], area[t], stretch[t], k_shear[t], True, g, hess, work)
-        for a in range(3):
-            v = faces[t, a]
-            for p in range(3):
-                grad[v, p] += g[3 * a + p]
-            for b in range(3):
-                block = values[slots[t, 3 * a + b]]
-                for p in range(3):
-                    for q in range(3):
-                        block[p, q] += hess[3 * a + p, 3 * b + q]
+        add_triangle(faces[t], slots[t], g, hess, grad, values)
     return total
 
 
