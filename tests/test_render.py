@@ -6,7 +6,6 @@ import numpy as np
 import pytest
 import yaml
 from click.testing import CliRunner
-from conftest import grid
 
 import clothtool
 from clothtool.cli import main

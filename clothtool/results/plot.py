@@ -22,6 +22,8 @@ from clothtool.results.view3d import (COLLIDER_RGB, draw_meshes, layout, light_d
 
 HISTOGRAM_PAIRS = 100
 FIELD_AMBIENT = 0.65  # the field's colours lit softly: shape visible, colours still readable
+
+
 def pyplot(command="plot"):
     """matplotlib's pyplot on the headless Agg backend; ``command`` names who needs it."""
     try:

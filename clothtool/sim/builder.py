@@ -217,7 +217,6 @@ class ModelBuilder:
 
             q = hessian_bending_matrix(mesh.uv, faces) * self.tri_bend[0]
             plate = (q.indptr.astype(np.int64), q.indices.astype(np.int64), q.data)
-        terms = []
         membrane_model = self._membrane_model()
         terms = _elastic_terms(faces, dr_inv, self.area, self.tri_stretch, self.tri_shear,
                                bend_model, plate, n, hinge, rest_angle, coef, weights,

@@ -38,7 +38,7 @@ EPS = 1e-12
 
 
 @njit(cache=True)
-def _deformation(x0, x1, x2, dr_inv):
+def deformation(x0, x1, x2, dr_inv):
     """F's columns f0, f1 and the shape-function weights α, β: f0 = Σ α_v x_v, f1 = Σ β_v x_v."""
     a, b, c, d = dr_inv[0, 0], dr_inv[0, 1], dr_inv[1, 0], dr_inv[1, 1]
     e1 = sub(x1, x0)
@@ -51,7 +51,7 @@ def _deformation(x0, x1, x2, dr_inv):
 @njit(cache=True)
 def deformation_gradient(x0, x1, x2, dr_inv):
     """F's columns (f0, f1) = D_d D_r⁻¹."""
-    f0, f1, _, _ = _deformation(x0, x1, x2, dr_inv)
+    f0, f1, _, _ = deformation(x0, x1, x2, dr_inv)
     return f0, f1
 
 
@@ -78,7 +78,7 @@ def _stress(f0, f1, stretch, k_shear):
 @njit(cache=True)
 def membrane_energy(x0, x1, x2, dr_inv, area, stretch, k_shear):
     """A · (Ψ_stretch + Ψ_shear) of one triangle; stretch = (k_u, k_v, b_u, b_v)."""
-    f0, f1, _, _ = _deformation(x0, x1, x2, dr_inv)
+    f0, f1, _, _ = deformation(x0, x1, x2, dr_inv)
     return area * _density(f0, f1, stretch, k_shear)
 
 
@@ -174,7 +174,7 @@ def membrane_element(x0, x1, x2, dr_inv, area, stretch, k_shear, project, grad, 
     ``project``: PSD-project the Hessian through the closed-form eigensystems.
     ``h_f`` (6, 6) is workspace; it is left holding ∂²Ψ/∂vec F².
     """
-    f0, f1, alpha, beta = _deformation(x0, x1, x2, dr_inv)
+    f0, f1, alpha, beta = deformation(x0, x1, x2, dr_inv)
     energy = area * _density(f0, f1, stretch, k_shear)
     g0, g1 = _stress(f0, f1, stretch, k_shear)
     h_f[:, :] = 0.0
@@ -215,7 +215,7 @@ def membrane_vertex(x0, x1, x2, dr_inv, area, stretch, k_shear, a, grad, hess):
 
     k(ĉ) = k[f̂f̂ᵀ + c(I − f̂f̂ᵀ)] the stretch blocks; equal to the (a, a) block of
     :func:`membrane_element` with ``project``."""
-    f0, f1, alpha, beta = _deformation(x0, x1, x2, dr_inv)
+    f0, f1, alpha, beta = deformation(x0, x1, x2, dr_inv)
     al, be = alpha[a], beta[a]
     g0, g1 = _stress(f0, f1, stretch, k_shear)
     for p in range(3):
@@ -289,7 +289,7 @@ def membrane_gradient(x, faces, dr_inv, area, stretch, k_shear, grad):
     """Adds ∇W_membrane to grad (N, 3), without the Hessian (the gradient of
     :func:`membrane_element`: A (α_v ∂Ψ/∂f0 + β_v ∂Ψ/∂f1) at vertex v)."""
     for t in range(faces.shape[0]):
-        f0, f1, alpha, beta = _deformation(load(x, faces[t, 0]), load(x, faces[t, 1]),
+        f0, f1, alpha, beta = deformation(load(x, faces[t, 0]), load(x, faces[t, 1]),
                                            load(x, faces[t, 2]), dr_inv[t])
         g0, g1 = _stress(f0, f1, stretch[t], k_shear[t])
         a = area[t]
@@ -334,7 +334,7 @@ def max_principal_stretch(x, faces, dr_inv):
     """Largest λ1 = √(largest eigenvalue of FᵀF) over all triangles."""
     worst = 0.0
     for t in range(faces.shape[0]):
-        f0, f1, _, _ = _deformation(load(x, faces[t, 0]), load(x, faces[t, 1]),
+        f0, f1, _, _ = deformation(load(x, faces[t, 0]), load(x, faces[t, 1]),
                                     load(x, faces[t, 2]), dr_inv[t])
         c00, c11, c01 = dot(f0, f0), dot(f1, f1), dot(f0, f1)
         half = 0.5 * (c00 - c11)

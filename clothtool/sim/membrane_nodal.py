@@ -40,8 +40,8 @@ a vertex with its two-ring.
 import numpy as np
 from numba import njit
 
-from clothtool.sim.membrane import _deformation
-from clothtool.vec3 import load
+from clothtool.sim.membrane import deformation
+from clothtool.vec3 import dot, load
 
 EPS = 1e-12
 
@@ -90,12 +90,12 @@ def _metric(x, faces, dr_inv, tri_ptr, tri, weight, v):
     c00 = c11 = c01 = 0.0
     for e in range(tri_ptr[v], tri_ptr[v + 1]):
         t = tri[e]
-        f0, f1, _, _ = _deformation(load(x, faces[t, 0]), load(x, faces[t, 1]),
+        f0, f1, _, _ = deformation(load(x, faces[t, 0]), load(x, faces[t, 1]),
                                     load(x, faces[t, 2]), dr_inv[t])
         w = weight[e]
-        c00 += w * (f0[0] * f0[0] + f0[1] * f0[1] + f0[2] * f0[2])
-        c11 += w * (f1[0] * f1[0] + f1[1] * f1[1] + f1[2] * f1[2])
-        c01 += w * (f0[0] * f1[0] + f0[1] * f1[1] + f0[2] * f1[2])
+        c00 += w * (dot(f0, f0))
+        c11 += w * (dot(f1, f1))
+        c01 += w * (dot(f0, f1))
     return c00, c11, c01
 
 
@@ -139,12 +139,12 @@ def nodal_assemble(x, faces, dr_inv, ptr, index, tri_ptr, tri, weight, local, ce
         c00 = c11 = c01 = 0.0
         for e in range(tri_ptr[v], tri_ptr[v + 1]):
             t = tri[e]
-            f0, f1, al, be = _deformation(load(x, faces[t, 0]), load(x, faces[t, 1]),
+            f0, f1, al, be = deformation(load(x, faces[t, 0]), load(x, faces[t, 1]),
                                           load(x, faces[t, 2]), dr_inv[t])
             w = weight[e]
-            c00 += w * (f0[0] * f0[0] + f0[1] * f0[1] + f0[2] * f0[2])
-            c11 += w * (f1[0] * f1[0] + f1[1] * f1[1] + f1[2] * f1[2])
-            c01 += w * (f0[0] * f1[0] + f0[1] * f1[1] + f0[2] * f1[2])
+            c00 += w * (dot(f0, f0))
+            c11 += w * (dot(f1, f1))
+            c01 += w * (dot(f0, f1))
             for a in range(3):
                 r = local[e, a]
                 for p in range(3):

@@ -150,9 +150,8 @@ class NewtonIntegrator(Integrator):
         return total
 
     def along(self, x, dx, base, target, h_eff):
-        """E(x + s dx) as a function of s and W(x + s dx), for the line search (Φ evaluated
-        inside). The damping
-        term is quadratic along the line, ½(a + s dx)ᵀD(a + s dx) with a = x − base: from
+        """E(x + s dx) as a function of s and W(x + s dx), for the line search (Φ, when there
+        is one, is evaluated inside). The damping term is quadratic along the line, ½(a + s dx)ᵀD(a + s dx) with a = x − base: from
         D a (kept in self._damped) and D dx (left in self._tmp), no product per trial."""
         mass, g = self.model.mass, self.model.gravity
         inv_h2 = 1.0 / (h_eff * h_eff)
@@ -167,10 +166,11 @@ class NewtonIntegrator(Integrator):
         dissipation = self._dissipation
 
         def energy(s, w):
-            d = x + s * dx - target
-            total = (0.5 * mass_weighted(d, d, mass) * inv_h2 + gravity_potential(x + s * dx, mass, g)
+            y = x + s * dx
+            d = y - target
+            total = (0.5 * mass_weighted(d, d, mass) * inv_h2 + gravity_potential(y, mass, g)
                      + w + at_x + s * cross + 0.5 * s * s * curve)
-            return total + (dissipation.energy(x + s * dx) if dissipation is not None else 0.0)
+            return total + (dissipation.energy(y) if dissipation is not None else 0.0)
         return energy
 
     def _line_search(self, x, dx, base, target, elastic, h_eff, start=1.0, contact=None):
