@@ -49,9 +49,9 @@ def plate(substeps=1, frames=FRAMES, material=None, **solver):
 def trajectory(cfg, initial=None):
     """Positions at every frame, Newton and CG iterations per step, wall seconds per frame
     (after a first, untimed step that compiles the kernels)."""
-    from clothtool.sim.config import Config, load_config
-    from clothtool.sim.methods import make_integrator
-    from clothtool.sim.builder import build_model
+    from clothtool.sim.model.config import Config, load_config
+    from clothtool.sim.model.methods import make_integrator
+    from clothtool.sim.model.builder import build_model
 
     config = cfg if isinstance(cfg, Config) else load_config(cfg)
     model = build_model(config)
@@ -117,7 +117,7 @@ def _orders(errors):
 
 def cost_rows(frames=20):
     """64×64 hanging sheet, one step per frame: the new default and the previous one."""
-    from clothtool.sim.config import load_config
+    from clothtool.sim.model.config import load_config
 
     scene = ROOT / "sample_data" / "hanging_sheet.yaml"
     grid = {"mesh.grid.nx": 64, "mesh.grid.ny": 64, "time.frames": frames}
@@ -255,7 +255,7 @@ def run(out_dir):
 
 
 def _defaults():
-    from clothtool.sim.config import Solver
+    from clothtool.sim.model.config import Solver
 
     s = Solver()
     return (f"integrator {s.integrator}, at most {s.newton_iterations} Newton iterations, "

@@ -37,8 +37,8 @@ from clothtool.contact.broadphase import mesh_edges
 from clothtool.contact.intersect import has_intersections
 from clothtool.io.ply import read_ply
 from clothtool.sim.api import simulate
-from clothtool.sim.config import load_config
-from clothtool.sim.colliders import load_colliders
+from clothtool.sim.model.config import load_config
+from clothtool.sim.model.colliders import load_colliders
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENES = ("twist", "drape", "stack", "tablecloth")

@@ -160,8 +160,8 @@ def check_sample(out, config):
     from clothtool.contact.distance import point_triangle_weights
     from clothtool.contact.intersect import has_intersections
     from clothtool.io.ply import read_ply
-    from clothtool.sim.attach import _nearest_triangles
-    from clothtool.sim.colliders import load_colliders
+    from clothtool.sim.model.attach import _nearest_triangles
+    from clothtool.sim.model.colliders import load_colliders
 
     try:
         import ipctk
@@ -169,7 +169,7 @@ def check_sample(out, config):
         ipctk = None
     colliders = load_colliders(config.scene.colliders)
     body_faces = colliders.faces
-    from clothtool.sim.builder import ModelBuilder
+    from clothtool.sim.model.builder import ModelBuilder
 
     a, b = ModelBuilder.from_config(config).stitches.T
     waist = np.asarray(config.scene.attach[0].vertices)
@@ -239,7 +239,7 @@ def _components(faces, n):
 
 def measure_sample():
     import clothtool
-    from clothtool.sim.config import load_config
+    from clothtool.sim.model.config import load_config
 
     config = load_config(SAMPLE)
     with tempfile.TemporaryDirectory() as tmp:

@@ -164,8 +164,8 @@ MAX_EXPLICIT_STEPS = 2000
 
 def explicit_steps(config):
     """Internal steps per frame ``explicit`` takes with its automatic step (cfl 0.5)."""
-    from clothtool.sim.builder import build_model
-    from clothtool.sim.config import load_config
+    from clothtool.sim.model.builder import build_model
+    from clothtool.sim.model.config import load_config
     from clothtool.sim.solvers.explicit import critical_step
 
     config = load_config(config)
@@ -175,7 +175,7 @@ def explicit_steps(config):
 
 
 def measure(name, ref, out_rows):
-    from clothtool.sim.methods import METHODS
+    from clothtool.sim.model.methods import METHODS
 
     assert {m for _, m, *_ in GRID} == set(METHODS), "every registered method is benchmarked"
     for label, method, extra, substeps, iterations in GRID:
@@ -370,22 +370,22 @@ def profile(out_dir, steps=20):
     import importlib
     import tempfile
 
-    from clothtool.sim.config import load_config
-    from clothtool.sim.methods import make_integrator
-    from clothtool.sim.builder import build_model
+    from clothtool.sim.model.config import load_config
+    from clothtool.sim.model.methods import make_integrator
+    from clothtool.sim.model.builder import build_model
     from clothtool.sim.output import FrameWriter
 
     # (module, kernel) → stage; each is looked up in the module that calls it
-    stages = {("clothtool.sim.terms", "membrane_assemble"): "membrane assembly (stretch+shear)",
-              ("clothtool.sim.terms", "dihedral_assemble"): "bending assembly (dihedral)",
-              ("clothtool.sim.terms", "quadratic_gradient"): "bending (quadratic)",
+    stages = {("clothtool.sim.energies.terms", "membrane_assemble"): "membrane assembly (stretch+shear)",
+              ("clothtool.sim.energies.terms", "dihedral_assemble"): "bending assembly (dihedral)",
+              ("clothtool.sim.energies.terms", "quadratic_gradient"): "bending (quadratic)",
               ("clothtool.sim.linalg.blocks", "block_multiply"): "damping products",
-              ("clothtool.sim.newton", "filtered_pcg"): "linear solve (PCG)",
-              ("clothtool.sim.newton", "resolve_collisions"): "collisions (projection)",
-              ("clothtool.sim.newton", "contact_constraints"): "collisions (contact constraints)",
-              ("clothtool.sim.newton", "apply_friction"): "collisions (friction)",
-              ("clothtool.sim.terms", "membrane_total_energy"): "line search: membrane energy",
-              ("clothtool.sim.terms", "dihedral_total_energy"): "line search: bending energy"}
+              ("clothtool.sim.solve.newton", "filtered_pcg"): "linear solve (PCG)",
+              ("clothtool.sim.solve.newton", "resolve_collisions"): "collisions (projection)",
+              ("clothtool.sim.solve.newton", "contact_constraints"): "collisions (contact constraints)",
+              ("clothtool.sim.solve.newton", "apply_friction"): "collisions (friction)",
+              ("clothtool.sim.energies.terms", "membrane_total_energy"): "line search: membrane energy",
+              ("clothtool.sim.energies.terms", "dihedral_total_energy"): "line search: bending energy"}
     scenes = {
         "full (bending, damping 0.01 s, sphere, pins)": dict(
             material={"damping": 0.01}, extra={}),

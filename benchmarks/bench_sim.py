@@ -56,9 +56,9 @@ def _run(overrides, frames):
     """Simulate in memory; returns (final positions, per-step (wall, CPU) seconds, per-step CG
     iterations, largest principal stretch) or None on a blow-up."""
     from clothtool.errors import NumericalError
-    from clothtool.sim.config import load_config
+    from clothtool.sim.model.config import load_config
     from clothtool.sim.solvers.implicit import ImplicitEuler
-    from clothtool.sim.builder import build_model
+    from clothtool.sim.model.builder import build_model
 
     cfg = load_config(SCENE, overrides=overrides)
     model = build_model(cfg)

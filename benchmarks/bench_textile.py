@@ -7,7 +7,7 @@ Writes ``bench-results/textile.md`` and ``textile_drape.png``:
 - cantilever (ASTM D1388): tip drop against the elastica at overhangs of 1, 2 and 3
   bending lengths, strips along and across a grid, at 45° to one and on a Delaunay mesh,
   at 20 and 40 divisions along the strip, for the ``hessian`` bending with the ``triangle``
-  and ``nodal`` membranes and for ``dihedral`` (static equilibrium, :mod:`clothtool.sim.statics`);
+  and ``nodal`` membranes and for ``dihedral`` (static equilibrium, :mod:`clothtool.sim.solve.statics`);
 - hanging strips along warp, weft and bias against ρgL²/(2k) (k along the bias from
   :func:`clothtool.sim.textile.bias_modulus`), with each membrane model;
 - Cusick drape (BS 5058: a 30 cm disc on an 18 cm pedestal): the drape coefficient on a
@@ -41,7 +41,7 @@ G = 9.81
 
 def cantilever_rows():
     from clothtool.errors import NumericalError
-    from clothtool.sim.statics import static_equilibrium
+    from clothtool.sim.solve.statics import static_equilibrium
     from clothtool.sim.textile import elastica_tip_drop, specimen_model, strip
 
     length, width, density = 0.1, 0.025, 0.2
@@ -79,7 +79,7 @@ def cantilever_rows():
 
 
 def hanging_rows():
-    from clothtool.sim.statics import static_equilibrium
+    from clothtool.sim.solve.statics import static_equilibrium
     from clothtool.sim.textile import bias_modulus, specimen_model, strip
 
     length, width, density, k_u, k_v, k_h = 0.4, 0.01, 0.2, 1000.0, 3000.0, 50.0
@@ -118,8 +118,8 @@ DRAPE = dict(radius=0.15, pedestal=0.09, density=0.2, bending_length=0.03, stret
 def drape(kind, spacing, **material):
     """(positions, faces, drape coefficient, folds, wall s, largest speed) of the Cusick test on
     one mesh; ``material``: keys that replace or add to DRAPE's."""
-    from clothtool.sim.config import load_config
-    from clothtool.sim.methods import make_integrator
+    from clothtool.sim.model.config import load_config
+    from clothtool.sim.model.methods import make_integrator
     from clothtool.sim.textile import disc, drape_coefficient, specimen_model
 
     d = DRAPE
@@ -207,9 +207,9 @@ def _plot_drape(shown, path):
 COST_SCRIPT = r"""
 import sys, time, statistics
 sys.path.insert(0, sys.argv[1])
-from clothtool.sim.config import load_config
-from clothtool.sim.methods import make_integrator
-from clothtool.sim.builder import build_model
+from clothtool.sim.model.config import load_config
+from clothtool.sim.model.methods import make_integrator
+from clothtool.sim.model.builder import build_model
 bend, frames, bend_model = float(sys.argv[2]), int(sys.argv[3]), sys.argv[4]
 overrides = {"mesh.grid.nx": 64, "mesh.grid.ny": 64, "material.bend": bend,
              "material.bend_model": bend_model}

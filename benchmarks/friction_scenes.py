@@ -12,8 +12,8 @@ import numpy as np
 
 from clothtool.io.ply import read_ply, write_ply
 from clothtool.sim.api import simulate
-from clothtool.sim.config import GridSpec
-from clothtool.sim.mesh import grid_mesh
+from clothtool.sim.model.config import GridSpec
+from clothtool.sim.model.mesh import grid_mesh
 
 G = 9.81
 SURFACES = ("plane", "box", "mesh", "cloth")

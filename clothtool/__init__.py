@@ -22,7 +22,7 @@ _LAZY = {
     "read_mesh": ("clothtool.io.frames", "read_mesh"),
     "discover_frames": ("clothtool.io.frames", "discover_frames"),
     "simulate": ("clothtool.sim.api", "simulate"),
-    "load_config": ("clothtool.sim.config", "load_config"),
+    "load_config": ("clothtool.sim.model.config", "load_config"),
     "sweep": ("clothtool.sweeps.api", "sweep"),
     "sweep_report": ("clothtool.sweeps.report", "sweep_report"),
 }

@@ -16,8 +16,8 @@ import numpy as np
 
 from clothtool.contact.shapes import box, capsule, plate
 from clothtool.io.ply import write_ply
-from clothtool.sim.config import GridSpec
-from clothtool.sim.mesh import grid_mesh
+from clothtool.sim.model.config import GridSpec
+from clothtool.sim.model.mesh import grid_mesh
 
 
 def stack(sheets=5, n=20, size=0.6, first=0.05, gap=0.04, turn=np.radians(15.0)):

@@ -78,7 +78,7 @@ def test_override_errors_name_the_assignment(assignment, message):
 def test_default_config_matches_the_simulator():
     """init-config loads in the simulator and shows every setting of its schema, each with the
     simulator's default (except the example's pins and colliders, and the output path)."""
-    import clothtool.sim.config as sim
+    import clothtool.sim.model.config as sim
 
     raw = yaml.safe_load(DEFAULT_CONFIG)
     printed = sim.as_dict(sim.load_config(raw))
@@ -95,7 +95,7 @@ def test_default_config_matches_the_simulator():
 def test_override_errors_name_the_keyword_and_the_cli_its_option(tmp_path):
     """The library names its keyword argument (``overrides``), never the CLI's flag; the CLI
     shows the same detail under ``--set``, as it shows ``fields=`` under ``--fields``."""
-    from clothtool.sim.config import load_config
+    from clothtool.sim.model.config import load_config
 
     for overrides in (["material.stretch"], ["time.fps.x=1"], {"time.fps.x": 1}):
         with pytest.raises(InputError) as caught:

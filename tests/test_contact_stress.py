@@ -20,8 +20,8 @@ from clothtool.cli import main
 from clothtool.contact.broadphase import mesh_edges
 from clothtool.contact.shapes import box
 from clothtool.io.ply import read_ply, write_ply
-from clothtool.sim.config import GridSpec
-from clothtool.sim.mesh import grid_mesh
+from clothtool.sim.model.config import GridSpec
+from clothtool.sim.model.mesh import grid_mesh
 
 
 def random_scene(rng, folder):

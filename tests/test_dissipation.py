@@ -1,4 +1,4 @@
-"""The stretch dissipation potential Φ (clothtool.sim.dissipation): finite-difference checks
+"""The stretch dissipation potential Φ (clothtool.sim.energies.dissipation): finite-difference checks
 of its gradient and Hessian, its known values, and the crumpled start it was built for."""
 
 import numpy as np
@@ -7,12 +7,12 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from clothtool.errors import InputError
-from clothtool.sim.builder import build_model
-from clothtool.sim.config import load_config
-from clothtool.sim.dissipation import (StretchDissipation, column_lengths, dissipation_element,
+from clothtool.sim.model.builder import build_model
+from clothtool.sim.model.config import load_config
+from clothtool.sim.energies.dissipation import (StretchDissipation, column_lengths, dissipation_element,
                                        dissipation_energy)
 from clothtool.sim.linalg.blocks import BlockMatrix
-from clothtool.sim.membrane import max_principal_stretch
+from clothtool.sim.energies.membrane import max_principal_stretch
 from clothtool.sim.solvers.compare import run_in_memory
 
 DR_INV = np.linalg.inv(np.array([[0.1, 0.03], [0.0, 0.08]]))  # a rest triangle, uv edges

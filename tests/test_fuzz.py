@@ -406,7 +406,7 @@ VALUES = st.recursive(SCALARS, lambda inner: st.lists(inner, max_size=4)
 
 @pytest.fixture(scope="module")
 def load_config():
-    from clothtool.sim.config import load_config
+    from clothtool.sim.model.config import load_config
 
     return load_config
 

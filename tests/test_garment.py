@@ -19,10 +19,10 @@ from hypothesis import strategies as st
 import clothtool
 from clothtool.errors import InputError
 from clothtool.io.ply import read_ply
-from clothtool.sim.builder import ModelBuilder, build_model
-from clothtool.sim.config import load_config
-from clothtool.sim.statics import static_equilibrium
-from clothtool.sim.terms import Stitch, stitch_energy
+from clothtool.sim.model.builder import ModelBuilder, build_model
+from clothtool.sim.model.config import load_config
+from clothtool.sim.solve.statics import static_equilibrium
+from clothtool.sim.energies.terms import Stitch, stitch_energy
 
 from garment_meshes import apart_pair, panel, welded_pair, write_obj
 
@@ -135,7 +135,7 @@ def test_panel_damping_is_each_panels_beta_times_its_stiffness(tmp_path):
     """Per-panel damping D = (1/ĥ) Σ_e β_e K_e: on two separate strips (β 0.01 and 0.1 s) the
     β-scaled terms assemble to β times each strip's stiffness blocks, at a deformed state
     (bending on: the hinges' blocks too)."""
-    from clothtool.sim.energy import FemElastic
+    from clothtool.sim.energies.energy import FemElastic
 
     path, top = strips_obj(tmp_path)
     cfg = hanging_config(path, top, material={"damping": 0.01, "bend": 1e-3},
@@ -383,8 +383,8 @@ def test_attach_follows_an_animated_mesh_in_its_triangle_frame():
     normal): a mesh frame turned a quarter about z carries the point turned with it."""
     from types import SimpleNamespace
 
-    from clothtool.sim.attach import attach_motions
-    from clothtool.sim.colliders import Colliders
+    from clothtool.sim.model.attach import attach_motions
+    from clothtool.sim.model.colliders import Colliders
 
     tri = np.array([[0, 1, 2], [0, 2, 3]])
     square = np.array([[-1.0, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0]])
@@ -403,9 +403,9 @@ def test_attach_follows_an_animated_mesh_in_its_triangle_frame():
 def test_attach_taking_hold_later_follows_the_rigid_motion_from_there():
     """Tied at t_w to a collider turning about z at 1 rad/s: at t_w the goal is where the
     vertex is, at t_w + 0.5 it is turned by 0.5 rad more."""
-    from clothtool.sim.attach import attach_motions
-    from clothtool.sim.colliders import load_colliders
-    from clothtool.sim.config import load_config
+    from clothtool.sim.model.attach import attach_motions
+    from clothtool.sim.model.colliders import load_colliders
+    from clothtool.sim.model.config import load_config
 
     scene = load_config({"mesh": {"grid": {}}, "scene": {"colliders": [{"sphere": {
         "center": [0, 0, 0], "radius": 0.1, "motion": {"rotate": {"axis": [0, 0, 1],

@@ -11,7 +11,7 @@ import pytest
 
 import clothtool
 from benchmarks.bench_garment import HIP_Y, SAMPLE, check_sample
-from clothtool.sim.config import load_config
+from clothtool.sim.model.config import load_config
 
 ROOT = Path(__file__).resolve().parent.parent
 

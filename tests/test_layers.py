@@ -10,9 +10,11 @@ import is still a dependency). The layers, top to bottom:
 4. ``contact``, ``geometry``, ``io``;
 5. the base: every other module (``errors``, ``fields``, ``vec3``, ``config_tools``, …).
 
-A module imports only from its own layer's package or from layers below. Inside ``sim``, the
-methods (``sim.solvers``) are on top: no other ``sim`` module imports them (``sim.methods``
-names them as strings). And the import graph has no cycle.
+A module imports only from its own layer's package or from layers below. Inside ``sim`` the
+rooms have floors of their own, top to bottom: the modules at ``sim``'s top (``api``,
+``output``, ``scene``, ``textile``), ``sim.solvers`` (one module per method; ``sim.model.methods``
+names them as strings), ``sim.solve``, ``sim.model``, ``sim.energies``, ``sim.linalg``; a room
+imports only its own floor and the floors below. And the import graph has no cycle.
 """
 
 import ast
@@ -28,7 +30,8 @@ LAYERS = (
     ("clothtool.contact", "clothtool.geometry", "clothtool.io"),
 )
 INDEPENDENT = {2}  # layers whose packages must not import one another
-ON_TOP = {"clothtool.sim": "clothtool.sim.solvers"}  # package → its sub-package nothing else imports
+SIM_FLOORS = ("clothtool.sim.solvers", "clothtool.sim.solve", "clothtool.sim.model",
+              "clothtool.sim.energies", "clothtool.sim.linalg")  # top to bottom, inside sim
 
 
 def module_name(path, root=PACKAGE):
@@ -68,6 +71,14 @@ def layer_of(module):
     return len(LAYERS), "base"
 
 
+def sim_floor(module):
+    """The floor of a ``sim`` module (0 for the top modules, 1 for ``sim.solvers``, …), or None."""
+    for index, room in enumerate(SIM_FLOORS, start=1):
+        if module == room or module.startswith(room + "."):
+            return index
+    return 0 if module.startswith("clothtool.sim.") else None
+
+
 def violations(graph, modules, root=PACKAGE):
     found = []
     for source, edges in graph.items():
@@ -79,10 +90,10 @@ def violations(graph, modules, root=PACKAGE):
                 found.append(f"{where}: {other} is above {package}")
             elif there == here and package != other and here in INDEPENDENT:
                 found.append(f"{where}: {package} and {other} are independent")
-            for parent, top in ON_TOP.items():
-                inside = source == top or source.startswith(top + ".")
-                if source.startswith(parent + ".") and not inside and target.startswith(top):
-                    found.append(f"{where}: {top} is on top of {parent}")
+            a, b = sim_floor(source), sim_floor(target)
+            if a is not None and b is not None and b < a:
+                found.append(f"{where}: {target.rsplit('.', 1)[0]} is a floor above "
+                             f"{source.rsplit('.', 1)[0]}")
     return found
 
 
@@ -130,13 +141,14 @@ def test_no_import_cycle():
 
 
 def test_the_contract_catches_what_it_forbids(tmp_path):
-    """An upward import, a sideways import between independent packages, a reach into
-    sim.solvers and a cycle, each in a throw-away package, are each reported."""
+    """An upward import, a sideways import between independent packages, a reach from a
+    lower floor of sim into a higher one and a cycle, each in a throw-away package, are each
+    reported."""
     root = tmp_path / "clothtool"
     files = {
         "__init__.py": "", "errors.py": "from clothtool.io import h5\n",
         "io/__init__.py": "", "io/h5.py": "from clothtool import errors\n",
-        "sim/__init__.py": "", "sim/energy.py": "from clothtool.sim.solvers.springs import k\n",
+        "sim/__init__.py": "", "sim/energies/energy.py": "from clothtool.sim.solvers.springs import k\n",
         "sim/solvers/__init__.py": "", "sim/solvers/springs.py": "k = 1\n",
         "results/__init__.py": "", "results/info.py": "def f():\n    from clothtool.analysis import summary\n",
         "analysis/__init__.py": "", "analysis/summary.py": "",
@@ -149,7 +161,7 @@ def test_the_contract_catches_what_it_forbids(tmp_path):
     assert any("errors.py:1 imports clothtool.io.h5: clothtool.io is above base" in f for f in found)
     assert any("results/info.py:2 imports clothtool.analysis.summary: clothtool.results and "
                "clothtool.analysis are independent" in f for f in found)
-    assert any("sim/energy.py:1 imports clothtool.sim.solvers.springs" in f for f in found)
+    assert any("sim/energies/energy.py:1 imports clothtool.sim.solvers.springs" in f for f in found)
     assert cycles(graph) == [frozenset({"clothtool.errors", "clothtool.io.h5"})]
 
 

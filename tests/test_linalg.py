@@ -13,9 +13,9 @@ from clothtool.sim.api import simulate
 from clothtool.sim.linalg.blocks import BlockMatrix, ConstraintFilter
 from clothtool.sim.linalg.multigrid import Hierarchy
 from clothtool.sim.linalg.pcg import BlockJacobi, filtered_pcg
-from clothtool.sim.config import GridSpec, load_config
-from clothtool.sim.mesh import grid_mesh
-from clothtool.sim.builder import build_model
+from clothtool.sim.model.config import GridSpec, load_config
+from clothtool.sim.model.mesh import grid_mesh
+from clothtool.sim.model.builder import build_model
 from clothtool.sim.solvers.implicit import ImplicitEuler
 from clothtool.vec3 import spd_inverse3
 

@@ -6,12 +6,12 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from clothtool.errors import InputError
-from clothtool.sim.config import load_config
-from clothtool.sim.builder import build_model
+from clothtool.sim.model.config import load_config
+from clothtool.sim.model.builder import build_model
 from clothtool.sim.linalg.blocks import BlockPattern
-from clothtool.sim.membrane import membrane_total_energy
-from clothtool.sim.membrane_nodal import nodal_assemble, nodal_energy, nodal_operator, nodal_pairs
-from clothtool.sim.terms import NodalMembrane
+from clothtool.sim.energies.membrane import membrane_total_energy
+from clothtool.sim.energies.membrane_nodal import nodal_assemble, nodal_energy, nodal_operator, nodal_pairs
+from clothtool.sim.energies.terms import NodalMembrane
 from clothtool.sim.textile import disc
 
 KINDS = ["grid", "rot45", "delaunay"]

@@ -12,9 +12,9 @@ import numpy as np
 import pytest
 
 from clothtool.errors import InputError
-from clothtool.sim.config import load_config
-from clothtool.sim.membrane import max_principal_stretch
-from clothtool.sim.builder import build_model
+from clothtool.sim.model.config import load_config
+from clothtool.sim.energies.membrane import max_principal_stretch
+from clothtool.sim.model.builder import build_model
 from clothtool.sim.solvers.compare import run_in_memory
 
 TIGHT = dict(newton_iterations=60, newton_tolerance=1e-9, tolerance=1e-10, max_iterations=3000)

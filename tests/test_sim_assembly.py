@@ -15,10 +15,10 @@ import pytest
 
 from clothtool.geometry import dihedral_angles
 from clothtool.sim.linalg.blocks import BlockMatrix
-from clothtool.sim.config import load_config
-from clothtool.sim.energy import FemElastic, SpringElastic
-from clothtool.sim.methods import make_integrator
-from clothtool.sim.builder import build_model
+from clothtool.sim.model.config import load_config
+from clothtool.sim.energies.energy import FemElastic, SpringElastic
+from clothtool.sim.model.methods import make_integrator
+from clothtool.sim.model.builder import build_model
 from clothtool.sim.solvers.explicit import elastic_forces
 
 STEP = 1e-6

@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 
 from clothtool.errors import InputError
-from clothtool.sim.config import load_config
-from clothtool.sim.builder import build_model
-from clothtool.sim.pins import grid_pin_set
+from clothtool.sim.model.config import load_config
+from clothtool.sim.model.builder import build_model
+from clothtool.sim.model.pins import grid_pin_set
 
 GRID = {"mesh": {"grid": {"nx": 4, "ny": 3}}}
 

@@ -21,11 +21,11 @@ from clothtool.contact.shapes import box, capsule, plate
 from clothtool.errors import InputError
 from clothtool.io.ply import read_ply, write_ply
 from clothtool.sim.api import simulate
-from clothtool.sim.config import GridSpec, load_config
-from clothtool.sim.mesh import grid_mesh
-from clothtool.sim.builder import build_model
-from clothtool.sim.motion import resolve_pin_entries
-from clothtool.sim.colliders import load_colliders
+from clothtool.sim.model.config import GridSpec, load_config
+from clothtool.sim.model.mesh import grid_mesh
+from clothtool.sim.model.builder import build_model
+from clothtool.sim.model.motion import resolve_pin_entries
+from clothtool.sim.model.colliders import load_colliders
 
 SOLVER = {"newton_iterations": 8, "newton_tolerance": 2e-2, "tolerance": 1e-2}
 

@@ -7,11 +7,11 @@ from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
 from clothtool.geometry import dihedral_angle, dihedral_angle_gradient, hinges
-from clothtool.sim.bending import (dihedral_element, dihedral_total_energy, quadratic_element,
+from clothtool.sim.energies.bending import (dihedral_element, dihedral_total_energy, quadratic_element,
                                    quadratic_weights)
-from clothtool.sim.config import GridSpec
-from clothtool.sim.membrane import membrane_element, membrane_energy
-from clothtool.sim.mesh import grid_mesh
+from clothtool.sim.model.config import GridSpec
+from clothtool.sim.energies.membrane import membrane_element, membrane_energy
+from clothtool.sim.model.mesh import grid_mesh
 
 FD_STEP = 1e-6
 FD_TOL = 1e-5
@@ -231,7 +231,7 @@ def test_degenerate_hinge_bends_nothing(hinge):
 @pytest.mark.parametrize("height, bends", [(0.5e-4, False), (2e-4, True)])
 def test_sliver_hinges_bend_nothing(height, bends):
     """A hinge triangle lower than THIN = 1e-4 of its shared edge adds no energy or force."""
-    from clothtool.sim.bending import dihedral_assemble
+    from clothtool.sim.energies.bending import dihedral_assemble
 
     x = np.array([[0, 0, 0], [1, 0, 0], [0.5, height, 0], [0.5, -0.6, 0.3]], dtype=float)
     hinge = np.array([[0, 1, 2, 3]])

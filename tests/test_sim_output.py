@@ -20,7 +20,7 @@ from clothtool.io.mdd import MddWriter, read_mdd
 from clothtool.io.obj import read_obj
 from clothtool.io.obj_writer import ObjWriter, write_obj
 from clothtool.io.ply import read_ply
-from clothtool.sim.config import load_config
+from clothtool.sim.model.config import load_config
 from clothtool.sim.output import FrameWriter
 
 CONFIG = {"mesh": {"grid": {"nx": 7, "ny": 5, "width": 0.6, "height": 0.4}},
@@ -129,8 +129,8 @@ def test_resolved_yaml_reads_back_as_the_same_config(sample, tmp_path, monkeypat
     from dataclasses import replace
     from pathlib import Path
 
-    from clothtool.sim.config import resolved_yaml
-    from clothtool.sim.schema import resolve_paths
+    from clothtool.sim.model.config import resolved_yaml
+    from clothtool.sim.model.schema import resolve_paths
 
     config = load_config(Path(__file__).parent.parent / "sample_data" / f"{sample}.yaml")
     (tmp_path / "config.yaml").write_text(resolved_yaml(config))

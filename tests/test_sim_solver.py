@@ -13,9 +13,9 @@ from clothtool.sim.api import simulate
 from clothtool.sim.linalg.blocks import BlockMatrix, ConstraintFilter, block_multiply
 from clothtool.sim.linalg.multigrid import Hierarchy
 from clothtool.sim.linalg.pcg import BlockJacobi, filtered_pcg
-from clothtool.sim.config import load_config
-from clothtool.sim.methods import make_integrator
-from clothtool.sim.builder import build_model
+from clothtool.sim.model.config import load_config
+from clothtool.sim.model.methods import make_integrator
+from clothtool.sim.model.builder import build_model
 from clothtool.sim.solvers.implicit import ImplicitEuler
 
 

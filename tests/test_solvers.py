@@ -17,11 +17,11 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from clothtool.errors import InputError
-from clothtool.sim.config import load_config
-from clothtool.sim.builder import build_model
-from clothtool.sim.methods import make_integrator
+from clothtool.sim.model.config import load_config
+from clothtool.sim.model.builder import build_model
+from clothtool.sim.model.methods import make_integrator
 from clothtool.sim.solvers.compare import Run, position_error, run_in_memory
-from clothtool.sim.springs import spring_assemble
+from clothtool.sim.energies.springs import spring_assemble
 
 CK = (3, 6, 9)
 CONVERGED = dict(newton_iterations=30, newton_tolerance=1e-9, tolerance=1e-10, max_iterations=2000)
@@ -198,7 +198,7 @@ def test_spring_hessian_is_psd_and_matches_the_gradient():
     assert np.allclose(dense, dense.T)
     assert np.linalg.eigvalsh(dense).min() > -1e-9 * np.abs(dense).max()
     # gradient by central differences
-    from clothtool.sim.springs import spring_energy
+    from clothtool.sim.energies.springs import spring_energy
     eps = 1e-6
     fd = np.zeros_like(x)
     for v in range(n):

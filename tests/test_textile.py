@@ -14,9 +14,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from clothtool.errors import InputError
-from clothtool.sim.config import load_config
-from clothtool.sim.plate import hessian_bending_matrix, hessian_gradient, mixed_voronoi_areas
-from clothtool.sim.statics import static_equilibrium
+from clothtool.sim.model.config import load_config
+from clothtool.sim.energies.plate import hessian_bending_matrix, hessian_gradient, mixed_voronoi_areas
+from clothtool.sim.solve.statics import static_equilibrium
 from clothtool.sim.textile import (bias_modulus, disc, elastica_tip_drop, specimen_model,
                                    strip)
 
@@ -216,7 +216,7 @@ def test_bending_length_gives_the_flexural_rigidity():
 
 def test_a_curved_rest_mesh_is_bent_with_the_dihedral_model(tmp_path):
     from clothtool.io.ply import write_ply
-    from clothtool.sim.builder import build_model
+    from clothtool.sim.model.builder import build_model
 
     uv, faces = disc(0.05, 0.01, "grid")
     x = embedded(uv)

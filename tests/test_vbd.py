@@ -8,13 +8,13 @@ from click.testing import CliRunner
 
 from clothtool.cli import main
 from clothtool.sim.linalg.blocks import BlockMatrix
-from clothtool.sim.config import load_config
-from clothtool.sim.membrane import membrane_element, membrane_vertex
-from clothtool.sim.energy import FemElastic
-from clothtool.sim.methods import make_integrator
-from clothtool.sim.builder import build_model
+from clothtool.sim.model.config import load_config
+from clothtool.sim.energies.membrane import membrane_element, membrane_vertex
+from clothtool.sim.energies.energy import FemElastic
+from clothtool.sim.model.methods import make_integrator
+from clothtool.sim.model.builder import build_model
 from clothtool.sim.solvers.vbd import colour_groups, vertex_system
-from clothtool.sim.state import State
+from clothtool.sim.model.state import State
 
 
 def setup(nx=5, ny=4, solver=None, **material):

@@ -9,9 +9,9 @@ from click.testing import CliRunner
 
 from clothtool.cli import main
 from clothtool.errors import InputError
-from clothtool.sim.config import load_config
-from clothtool.sim.methods import make_integrator
-from clothtool.sim.builder import build_model
+from clothtool.sim.model.config import load_config
+from clothtool.sim.model.methods import make_integrator
+from clothtool.sim.model.builder import build_model
 
 
 @pytest.mark.parametrize("method,solver", [

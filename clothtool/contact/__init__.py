@@ -12,5 +12,6 @@ kernels over one vertex array that holds the cloth and the colliders (a boolean
 - ``distance``: closest points of vertex–triangle and edge–edge pairs;
 - ``barrier``: the barrier energy, its gradient and a Gauss–Newton Hessian;
 - ``ccd``: the collision-free step fraction (additive CCD);
-- ``intersect``: an exact triangle-mesh intersection test, the independent check.
+- ``intersect``: an exact triangle-mesh intersection test, the independent check;
+- ``projection``: planes and spheres by projection, for the methods without barrier contact.
 """

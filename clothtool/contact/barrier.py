@@ -14,7 +14,7 @@ triangle is the exact triangle–sphere distance, and a capsule's segment agains
 triangle's edges and its end points against the triangle the exact one of a capsule.
 
 With the pair's wall ξ (plus R) and its activation distance d̂ (the collider's when a
-collider takes part, the cloth's otherwise; see :mod:`clothtool.sim.contact`), u = d² − ξ²
+collider takes part, the cloth's otherwise; see :mod:`clothtool.sim.solve.contact`), u = d² − ξ²
 and, within d̂ beyond ξ (u < û = (ξ + d̂)² − ξ²), the energy of codimensional IPC (Li et
 al. 2021, §4) is
 

@@ -25,7 +25,7 @@ above ε_v and a stiff viscous hold below it: a sheet on an incline creeps at mo
 
 positive semi-definite as it stands (IPC's f1 is built for that), and 2μλ/(ĥε_v) T Tᵀ at
 v = 0. λ, T, w and c are lagged: the Newton loop re-lags them at its solution until the
-friction force they give stops changing (:mod:`clothtool.sim.contact`).
+friction force they give stops changing (:mod:`clothtool.sim.solve.contact`).
 """
 
 import numpy as np

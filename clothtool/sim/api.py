@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from clothtool.errors import NumericalError
-from clothtool.sim.config import Config, load_config
+from clothtool.sim.model.config import Config, load_config
 
 
 @dataclass
@@ -45,18 +45,18 @@ def simulate(config_or_path, *, output_dir=None, overrides=None, progress=True):
 
     ``config_or_path``: a YAML path, a dict, or a loaded :class:`Config`.
     ``output_dir`` overrides ``output.dir`` (relative to the current folder).
-    ``overrides``: dotted keys → values, as in :func:`~clothtool.sim.config.load_config`.
+    ``overrides``: dotted keys → values, as in :func:`~clothtool.sim.model.config.load_config`.
     Raises :class:`~clothtool.errors.InputError` for a bad config or output path and
     :class:`~clothtool.errors.NumericalError` when the run blows up; frames
     written before that stay valid.
     """
     from tqdm import tqdm
 
-    from clothtool.sim.builder import ModelBuilder
-    from clothtool.sim.integrator import StepReport
-    from clothtool.sim.methods import make_integrator
+    from clothtool.sim.model.builder import ModelBuilder
+    from clothtool.sim.solve.integrator import StepReport
+    from clothtool.sim.model.methods import make_integrator
     from clothtool.sim.output import CONTACT_COLUMNS, STATS_COLUMNS, FrameWriter
-    from clothtool.sim.seams import check_sewing, sewn
+    from clothtool.sim.model.seams import check_sewing, sewn
 
     if isinstance(config_or_path, Config):
         if overrides:
@@ -144,7 +144,7 @@ def _write_config(config, out_dir):
     ``clothtool simulate`` read back; not when the run's own config is that file (a sweep's
     run folder)."""
     from clothtool.io.atomic import atomic_path
-    from clothtool.sim.config import resolved_yaml
+    from clothtool.sim.model.config import resolved_yaml
     from clothtool.sim.scene import RUN_CONFIG
 
     path = Path(out_dir) / RUN_CONFIG

@@ -1,7 +1,7 @@
 """What a picture of a run needs from its config: the colliders as triangle surfaces at any
 time of the run, the frame rate, and which way is up.
 
-Every collider is drawn as the simulation moves it (:meth:`~clothtool.sim.colliders.Colliders.positions`:
+Every collider is drawn as the simulation moves it (:meth:`~clothtool.sim.model.colliders.Colliders.positions`:
 a mesh's frames linear in time, rigid motions): a sphere as a UV sphere, a capsule as its
 cylinder between two hemispheres (one UV sphere split at its equator), a plane as a square
 patch about the point of the plane nearest the cloth, a box as its six faces, a mesh as its
@@ -14,8 +14,8 @@ from pathlib import Path
 
 import numpy as np
 
-from clothtool.sim.colliders import load_colliders
-from clothtool.sim.config import Config, load_config
+from clothtool.sim.model.colliders import load_colliders
+from clothtool.sim.model.config import Config, load_config
 
 RINGS, SEGMENTS = 12, 24  # latitude bands (even: a capsule splits at the equator) and meridians
 FLAT_SPLITS = 8  # a box face's and a plane patch's triangles are each split into 8² triangles

@@ -19,7 +19,7 @@ Known answers:
 
 import numpy as np
 
-from clothtool.sim.config import STANDARD_GRAVITY
+from clothtool.sim.model.config import STANDARD_GRAVITY
 
 
 def elastica_tip_drop(length, bend, density, gravity=STANDARD_GRAVITY):
@@ -86,14 +86,14 @@ def _rasterise(p, faces, radius, pixels):
 
 
 def specimen_model(uv, faces, pinned, material, folder, gravity=(0.0, 0.0, -STANDARD_GRAVITY)):
-    """A :class:`~clothtool.sim.model.Model` of the pattern laid flat in the xy plane (its uv as
+    """A :class:`~clothtool.sim.model.model.Model` of the pattern laid flat in the xy plane (its uv as
     the rest shape, written as ``folder/specimen.ply``), ``pinned`` vertex indices held,
     ``gravity`` (m/s², default down along z); ``material``: the config's material section."""
     from pathlib import Path
 
     from clothtool.io.ply import write_ply
-    from clothtool.sim.config import load_config
-    from clothtool.sim.builder import build_model
+    from clothtool.sim.model.config import load_config
+    from clothtool.sim.model.builder import build_model
 
     path = Path(folder) / "specimen.ply"
     positions = np.concatenate([uv, np.zeros((len(uv), 1))], axis=1)
@@ -163,7 +163,7 @@ def disc(radius, spacing, kind="grid", *, seed=0):
 
 def _criss_cross(a, b):
     """Grid over a × b (vertex j·len(a) + i at (a_i, b_j)), quads split by alternating diagonals
-    as :func:`clothtool.sim.mesh.grid_mesh` does."""
+    as :func:`clothtool.sim.model.mesh.grid_mesh` does."""
     nx, ny = len(a), len(b)
     aa, bb = np.meshgrid(a, b)
     uv = np.stack([aa.ravel(), bb.ravel()], axis=1)

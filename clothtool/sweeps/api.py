@@ -149,7 +149,7 @@ def plan(base, *, grid=None, zipped=None, random=None, ranges=None, seed=None, s
     ``solver.method`` names the runs use; every config checked, its pins against its mesh
     as well (what the run would refuse when it builds its model). Nothing is written."""
     from clothtool.config_tools import apply_overrides, assign
-    from clothtool.sim.config import load_config, read_yaml
+    from clothtool.sim.model.config import load_config, read_yaml
 
     base = Path(base)
     base_dir = base.parent.resolve()
@@ -225,9 +225,9 @@ def _with_settings(raw, settings, apply_overrides):
 
 def _check_pins(config, meshes):
     """The pins of a loaded config resolve on its mesh (named sets need a grid, indices must
-    exist), as :func:`clothtool.sim.model.build_model` checks them; ``meshes`` caches the
+    exist), as :func:`clothtool.sim.model.builder.build_model` checks them; ``meshes`` caches the
     vertex count of each mesh file."""
-    from clothtool.sim.motion import resolve_pin_entries
+    from clothtool.sim.model.motion import resolve_pin_entries
 
     grid = config.mesh.grid
     if grid is not None:
@@ -244,7 +244,7 @@ def _check_pins(config, meshes):
 
 def _with_resolved_paths(raw, config):
     """``raw`` with each relative path replaced by the absolute path the loader resolved
-    (``config``, the loaded :class:`~clothtool.sim.config.Config`), so that the run's
+    (``config``, the loaded :class:`~clothtool.sim.model.config.Config`), so that the run's
     config means the same from its own folder."""
     if isinstance(raw, dict) and is_dataclass(config):
         names = {f.name for f in fields(config)}

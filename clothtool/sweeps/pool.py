@@ -41,9 +41,9 @@ from clothtool import interrupt
 from clothtool.errors import ClothtoolError, InputError
 
 # what every run imports (clothtool.sim.api imports the others when a run starts)
-PRELOAD = ("tqdm", "clothtool.sweeps.run", "clothtool.sim.api", "clothtool.sim.builder",
-           "clothtool.sim.integrator",
-           "clothtool.sim.methods", "clothtool.sim.model", "clothtool.sim.output")
+PRELOAD = ("tqdm", "clothtool.sweeps.run", "clothtool.sim.api", "clothtool.sim.model.builder",
+           "clothtool.sim.solve.integrator",
+           "clothtool.sim.model.methods", "clothtool.sim.model.model", "clothtool.sim.output")
 ANALYSIS_PRELOAD = ("clothtool.analysis.sequence",)
 STOP_WAIT_S = 10.0  # how long a stopped process may take to clean up before SIGKILL
 
@@ -156,7 +156,7 @@ def serve(fd):
         if message is None:
             return
         runs, methods = message
-        from clothtool.sim.methods import METHODS
+        from clothtool.sim.model.methods import METHODS
 
         for name in methods:
             METHODS[name].load()

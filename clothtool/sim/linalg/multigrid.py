@@ -25,7 +25,7 @@ smooth error that Jacobi cannot reach:
 import numpy as np
 from numba import njit
 
-from clothtool.sim.filter import FREE, PINNED, SLIDING
+from clothtool.sim.linalg.filter import FREE, PINNED, SLIDING
 from clothtool.sim.linalg.blocks import BlockPattern
 from clothtool.vec3 import spd_inverse3
 

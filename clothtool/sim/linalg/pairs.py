@@ -1,6 +1,6 @@
 """The pair operator: a sum of small Hessians Σ_k (w_k w_kᵀ) ⊗ B_k over vertex stencils.
 
-Contact fills it (:mod:`clothtool.sim.contact`), and the PCG applies it (:mod:`clothtool.sim.linalg.pcg`): each barrier pair with its Gauss–Newton
+Contact fills it (:mod:`clothtool.sim.solve.contact`), and the PCG applies it (:mod:`clothtool.sim.linalg.pcg`): each barrier pair with its Gauss–Newton
 block B = c n nᵀ along its normal, each friction pair with its tangent block (see
 :mod:`clothtool.contact.friction`), on the closest-point weights w_k of its four vertices.
 The diagonal 3×3 blocks go into the system matrix (so that its preconditioners see them),

@@ -20,7 +20,7 @@ numba kernels underneath take the plain arrays these unpack to. A pair operator
 import numpy as np
 from numba import njit
 
-from clothtool.sim.filter import PINNED, apply_filter
+from clothtool.sim.linalg.filter import PINNED, apply_filter
 from clothtool.sim.linalg.blocks import block_multiply, residual
 from clothtool.sim.linalg.multigrid import COARSEST, NO_MULTIGRID, Hierarchy, vcycle
 from clothtool.sim.linalg.pairs import NO_PAIRS, pairs_offdiagonal_multiply

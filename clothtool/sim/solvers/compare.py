@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from clothtool.sim.config import Config, load_config
+from clothtool.sim.model.config import Config, load_config
 
 
 @dataclass
@@ -55,8 +55,8 @@ def run_in_memory(config, checkpoints=(), *, warmup=True, bound=100.0, initial=N
     speed exceeds ``solver.max_speed`` or a vertex leaves a ball of ``bound``
     metres around the origin.
     """
-    from clothtool.sim.builder import build_model
-    from clothtool.sim.methods import make_integrator
+    from clothtool.sim.model.builder import build_model
+    from clothtool.sim.model.methods import make_integrator
 
     if not isinstance(config, Config):
         config = load_config(config)

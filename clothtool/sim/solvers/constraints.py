@@ -1,5 +1,5 @@
 """The constraint kernels of ``pbd``, ``xpbd`` and ``projective`` on the spring network of
-:mod:`clothtool.sim.springs` (numba, float64, serial, allocation-free in their loops):
+:mod:`clothtool.sim.energies.springs` (numba, float64, serial, allocation-free in their loops):
 
 - :func:`pbd_gauss_seidel`, :func:`pbd_jacobi`, :func:`strain_limit_pass` (PBD);
 - :func:`xpbd_sweep` (XPBD, with its damping term);
@@ -9,7 +9,7 @@
 import numpy as np
 from numba import njit
 
-from clothtool.sim.springs import EPS
+from clothtool.sim.energies.springs import EPS
 
 
 @njit(cache=True, inline="always")

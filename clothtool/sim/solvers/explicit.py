@@ -5,13 +5,13 @@ or quadratic bending, stiffness-proportional damping), integrated by
 
     v ← v + h M⁻¹ (−∇W(x) − β K(x) v + M g),   x ← x + h v
 
-on the free vertices. The energy is ``implicit``'s (:class:`~clothtool.sim.energy.FemElastic`)
+on the free vertices. The energy is ``implicit``'s (:class:`~clothtool.sim.energies.energy.FemElastic`)
 through the same kernels, without assembling a matrix: the gradient-only forms
-:func:`~clothtool.sim.membrane.membrane_gradient` and
-:func:`~clothtool.sim.bending.dihedral_gradient`, and the damping force −βKv as a
+:func:`~clothtool.sim.energies.membrane.membrane_gradient` and
+:func:`~clothtool.sim.energies.bending.dihedral_gradient`, and the damping force −βKv as a
 product with the same projected element Hessians
-(:func:`~clothtool.sim.membrane.membrane_hessian_product`,
-:func:`~clothtool.sim.bending.quadratic_product`), only when ``material.damping`` > 0.
+(:func:`~clothtool.sim.energies.membrane.membrane_hessian_product`,
+:func:`~clothtool.sim.energies.bending.quadratic_product`), only when ``material.damping`` > 0.
 
 Stability needs h below the critical step h_c = (2/ω)(√(1 + ζ²) − ζ), ω the
 highest natural frequency and ζ = βω/2. With ``cfl`` > 0 (default 0.5) each
@@ -29,12 +29,12 @@ import math
 import numpy as np
 from numba import njit
 
-from clothtool.sim.bending import dihedral_gradient, quadratic_gradient, quadratic_product
-from clothtool.sim.collide import resolve_collisions
-from clothtool.sim.energy import FemElastic
-from clothtool.sim.integrator import Integrator, StepReport
-from clothtool.sim.membrane import membrane_gradient, membrane_hessian_product
-from clothtool.sim.plate import hessian_gradient, hessian_product
+from clothtool.sim.energies.bending import dihedral_gradient, quadratic_gradient, quadratic_product
+from clothtool.contact.projection import resolve_collisions
+from clothtool.sim.energies.energy import FemElastic
+from clothtool.sim.solve.integrator import Integrator, StepReport
+from clothtool.sim.energies.membrane import membrane_gradient, membrane_hessian_product
+from clothtool.sim.energies.plate import hessian_gradient, hessian_product
 
 STRETCH_MARGIN = 1.5
 

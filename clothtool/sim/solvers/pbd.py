@@ -38,8 +38,8 @@ itself); collisions are the same post-step projection as the implicit solver's.
 
 import numpy as np
 
-from clothtool.sim.energy import SpringElastic
-from clothtool.sim.integrator import Integrator, StepReport
+from clothtool.sim.energies.energy import SpringElastic
+from clothtool.sim.solve.integrator import Integrator, StepReport
 from clothtool.sim.solvers.hierarchy import build_levels, coarse_masses, prolong
 from clothtool.sim.solvers.constraints import (pbd_gauss_seidel, pbd_jacobi,
                                            strain_limit_pass)

@@ -28,8 +28,8 @@ import numpy as np
 import scipy.sparse as sps
 from scipy.sparse.linalg import splu
 
-from clothtool.sim.energy import SpringElastic
-from clothtool.sim.integrator import Integrator, StepReport
+from clothtool.sim.energies.energy import SpringElastic
+from clothtool.sim.solve.integrator import Integrator, StepReport
 from clothtool.sim.solvers.constraints import pd_local_rhs
 
 

@@ -2,11 +2,11 @@
 "Vertex Block Descent").
 
 One step minimises the same incremental potential as ``implicit``
-(:mod:`clothtool.sim.newton`)
+(:mod:`clothtool.sim.solve.newton`)
 
     E(x) = 1/(2h²) ‖x − y‖²_M + W(x) + 1/2 (x − x_n)ᵀ D (x − x_n),   y = x_n + h v_n + h² g,
 
-with the finite-element W of :mod:`clothtool.sim.energy` (membrane, dihedral or
+with the finite-element W of :mod:`clothtool.sim.energies.energy` (membrane, dihedral or
 quadratic bending) and D = (β/h) K(x_n) (β = material.damping, K the PSD-projected
 elastic Hessian at the start of the step), by block coordinate descent over the
 vertices: vertex i takes one Newton step on E as a function of x_i alone,
@@ -16,11 +16,11 @@ vertices: vertex i takes one Newton step on E as a function of x_i alone,
 
 (paper eq. 5–9), e running over the triangles and hinges around i. The element
 gradients and Hessians are those of the implicit method's kernels, evaluated per vertex
-(:func:`~clothtool.sim.membrane.membrane_vertex`, the (i, i) block of
-:func:`~clothtool.sim.membrane.membrane_element` without the 9×9; the dihedral angle gradient of
+(:func:`~clothtool.sim.energies.membrane.membrane_vertex`, the (i, i) block of
+:func:`~clothtool.sim.energies.membrane.membrane_element` without the 9×9; the dihedral angle gradient of
 :mod:`clothtool.geometry` with the Gauss–Newton Hessian of
-:func:`~clothtool.sim.bending.dihedral_assemble`;
-:func:`~clothtool.sim.bending.quadratic_element`), PSD-projected, restricted to
+:func:`~clothtool.sim.energies.bending.dihedral_assemble`;
+:func:`~clothtool.sim.energies.bending.quadratic_element`), PSD-projected, restricted to
 the vertex's 3×3 block, so H_ii is positive definite. Vertices are visited in
 graph-colour order (vertices of one colour share no triangle and no hinge, so the
 result does not depend on the order within a colour and a colour could be updated in
@@ -47,10 +47,10 @@ import numpy as np
 from numba import njit
 
 from clothtool.geometry import dihedral_angle_gradient
-from clothtool.sim.bending import quadratic_element
-from clothtool.sim.energy import FemElastic
-from clothtool.sim.integrator import Integrator, StepReport
-from clothtool.sim.membrane import deformation_gradient, membrane_element, membrane_vertex
+from clothtool.sim.energies.bending import quadratic_element
+from clothtool.sim.energies.energy import FemElastic
+from clothtool.sim.solve.integrator import Integrator, StepReport
+from clothtool.sim.energies.membrane import deformation_gradient, membrane_element, membrane_vertex
 from clothtool.vec3 import load
 
 BEND_NONE, BEND_DIHEDRAL, BEND_QUADRATIC, BEND_HESSIAN = 0, 1, 2, 3
@@ -175,11 +175,11 @@ def vertex_system(i, x, x_n, y, mass, inv_h2, faces, dr_inv, area, stretch, k_sh
     written into g and hmat. ``damp`` = β/h; tri_damp, hinge_damp: :func:`damping_data` at
     x_n (tri_damp the triangles' H_F, tri_f their F); g12 is workspace.
 
-    Membrane: :func:`~clothtool.sim.membrane.membrane_vertex` (the vertex's gradient and
+    Membrane: :func:`~clothtool.sim.energies.membrane.membrane_vertex` (the vertex's gradient and
     3×3 block, no 9×9). Bending: the dihedral gradient 2c(θ − θ̄)∇θ and the vertex block
-    2c ∇_iθ∇_iθᵀ of its Gauss–Newton Hessian (:func:`~clothtool.sim.bending.dihedral_assemble`),
+    2c ∇_iθ∇_iθᵀ of its Gauss–Newton Hessian (:func:`~clothtool.sim.energies.bending.dihedral_assemble`),
     from geometry's ∇θ; quadratic: the gradient of
-    :func:`~clothtool.sim.bending.quadratic_element` and the block 2c w_i² I of its constant
+    :func:`~clothtool.sim.energies.bending.quadratic_element` and the block 2c w_i² I of its constant
     Hessian."""
     m = mass[i] * inv_h2
     for p in range(3):

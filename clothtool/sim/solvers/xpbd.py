@@ -22,8 +22,8 @@ collisions are the post-step projection shared with the other solvers.
 
 import numpy as np
 
-from clothtool.sim.energy import SpringElastic
-from clothtool.sim.integrator import Integrator, StepReport
+from clothtool.sim.energies.energy import SpringElastic
+from clothtool.sim.solve.integrator import Integrator, StepReport
 from clothtool.sim.solvers.constraints import xpbd_sweep
 
 

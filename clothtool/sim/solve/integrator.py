@@ -1,8 +1,8 @@
 """The protocol every simulation method implements (after warp.sim's Model / State / Integrator).
 
-- the :class:`~clothtool.sim.model.Model` holds what does not change during a run
+- the :class:`~clothtool.sim.model.model.Model` holds what does not change during a run
   (rest data, masses, energies, pins, colliders, the spring network);
-- the :class:`~clothtool.sim.state.State` holds what does (positions, velocities,
+- the :class:`~clothtool.sim.model.state.State` holds what does (positions, velocities,
   time, contact memory), so a copy of it resumes a run;
 - an :class:`Integrator` is built once per run from (model, solver settings, h) and
   advances a state by h in place with :meth:`Integrator.step`, which returns a
@@ -10,15 +10,15 @@
   the next step overwrites, never memory of the motion.
 
 The methods and the config features each supports are listed in one registry,
-:mod:`clothtool.sim.methods`.
+:mod:`clothtool.sim.model.methods`.
 """
 
 from dataclasses import dataclass
 
 from numba import njit
 
-from clothtool.sim.collide import resolve_collisions
-from clothtool.sim.membrane import max_principal_stretch
+from clothtool.contact.projection import resolve_collisions
+from clothtool.sim.energies.membrane import max_principal_stretch
 
 
 @dataclass
@@ -67,9 +67,9 @@ class Integrator:
     """Base of every method: ``step(state)`` advances by ``h`` in place.
 
     Subclasses name their elastic energy W (``energy_class``, one of
-    :mod:`clothtool.sim.energy`: the statistics report it, Newton methods minimise
+    :mod:`clothtool.sim.energies.energy`: the statistics report it, Newton methods minimise
     with it) and implement :meth:`step`. ``solver`` is the config's
-    :class:`~clothtool.sim.config.Solver` section.
+    :class:`~clothtool.sim.model.config.Solver` section.
     """
 
     energy_class = None

@@ -3,7 +3,7 @@
 Each attached vertex is tied at t = 0 (a garment being sewn: when its seams are welded, so
 that it is dressed first) to the nearest point of collider K's surface, at the offset it
 starts from it, and follows the collider as a moving pin whose goal is that point
-and offset (:meth:`Model.pin_goal <clothtool.sim.model.Model.pin_goal>`, solved as every moving
+and offset (:meth:`Model.pin_goal <clothtool.sim.model.model.Model.pin_goal>`, solved as every moving
 pin is: a prescribed part of the Newton step, collision-free):
 
 - an animated mesh: the vertex's coordinates (α, β, γ) in the frame of its nearest triangle,
@@ -11,7 +11,7 @@ pin is: a prescribed part of the Newton step, collision-free):
   offset along its unit normal), give x(t) from the triangle's vertices at t;
 - every other collider moves rigidly (its ``motion``, or not at all): x(t) = c + T(t) +
   R(θ(t))(x₀ − c), the collider's own motion of the vertex's initial position
-  (:class:`~clothtool.sim.motion.RigidMotion`), which keeps its nearest point and offset;
+  (:class:`~clothtool.sim.model.motion.RigidMotion`), which keeps its nearest point and offset;
   tied at t_w, x₀ = c + R(−θ(t_w))(x_w − c − T(t_w)).
 """
 
@@ -29,7 +29,7 @@ class AttachMotion:
     """Vertices carried by collider ``collider`` of ``colliders`` (see the module)."""
 
     vertices: np.ndarray  # (P,) int64
-    colliders: object  # clothtool.sim.colliders.Colliders
+    colliders: object  # clothtool.sim.model.colliders.Colliders
     collider: int
     x0: np.ndarray  # (P, 3) positions at t = 0
     triangles: np.ndarray | None  # (P, 3) collider vertex indices (an animated mesh), or None

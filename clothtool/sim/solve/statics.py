@@ -2,7 +2,7 @@
 
 Minimises the potential Π(x) = W(x) − Σ_v m_v g·x_v over the free vertices (pinned ones stay
 at their initial positions), W the implicit method's elastic energy
-(:class:`~clothtool.sim.energy.FemElastic`), by Newton's method with the PSD-projected
+(:class:`~clothtool.sim.energies.energy.FemElastic`), by Newton's method with the PSD-projected
 Hessian, a direct sparse solve (scipy) and a backtracking line search, with gravity applied
 in ``load_steps`` equal increments (each one's minimum starts the next: large deflections,
 such as a cantilever at three bending lengths, converge from the flat state). No colliders.
@@ -15,7 +15,7 @@ import scipy.sparse.linalg as spla
 
 from clothtool.errors import NumericalError
 from clothtool.sim.linalg.blocks import BlockMatrix
-from clothtool.sim.energy import FemElastic
+from clothtool.sim.energies.energy import FemElastic
 
 RIDGE = 1e-10  # relative diagonal shift: a flat sheet without bending has no normal stiffness
 STALL = 1e-5  # a cut Newton step below this × the mesh's extent: converged

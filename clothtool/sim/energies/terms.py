@@ -6,29 +6,29 @@ vertex indices, for the block pattern of the system matrix), :meth:`bind` takes 
 stencil's block slots in that pattern, :meth:`constant` adds its constant Hessian (a
 quadratic term's whole Hessian) to the pattern's values once, :meth:`energy` is W_term(x)
 and :meth:`assemble` adds ∇W_term and the rest of its PSD Hessian.
-:class:`~clothtool.sim.energy.FemElastic` sums the Model's ``terms``, so a term added here
+:class:`~clothtool.sim.energies.energy.FemElastic` sums the Model's ``terms``, so a term added here
 reaches every method built on it.
 
-- :class:`Membrane`: Baraff–Witkin stretch and shear (Kim 2020, :mod:`clothtool.sim.membrane`),
+- :class:`Membrane`: Baraff–Witkin stretch and shear (Kim 2020, :mod:`clothtool.sim.energies.membrane`),
   per-triangle stiffnesses;
 - :class:`NodalMembrane`: the stretch density on each vertex's smoothed metric FᵀF
-  (node-based smoothing, :mod:`clothtool.sim.membrane_nodal`; ``material.membrane_model:
+  (node-based smoothing, :mod:`clothtool.sim.energies.membrane_nodal`; ``material.membrane_model:
   nodal``, beside a shear-only :class:`Membrane`);
 - :class:`PlateBending`, :class:`DihedralBending`, :class:`QuadraticBending`: the
-  ``material.bend_model`` choices (:mod:`clothtool.sim.plate`, :mod:`clothtool.sim.bending`);
+  ``material.bend_model`` choices (:mod:`clothtool.sim.energies.plate`, :mod:`clothtool.sim.energies.bending`);
 - :class:`Stitch`: W = ½ Σ_s k_s ‖x_a − x_b‖², seam pairs pulled together while a garment
-  is sewn (:mod:`clothtool.sim.seams`).
+  is sewn (:mod:`clothtool.sim.model.seams`).
 """
 
 import numpy as np
 from numba import njit
 
-from clothtool.sim.bending import (dihedral_assemble, dihedral_total_energy,
+from clothtool.sim.energies.bending import (dihedral_assemble, dihedral_total_energy,
                                    quadratic_gradient)
 from clothtool.sim.linalg.blocks import scatter_blocks
-from clothtool.sim.membrane import membrane_assemble, membrane_total_energy
-from clothtool.sim.membrane_nodal import nodal_assemble, nodal_energy, nodal_operator, nodal_pairs
-from clothtool.sim.plate import hessian_gradient
+from clothtool.sim.energies.membrane import membrane_assemble, membrane_total_energy
+from clothtool.sim.energies.membrane_nodal import nodal_assemble, nodal_energy, nodal_operator, nodal_pairs
+from clothtool.sim.energies.plate import hessian_gradient
 
 NO_GRADIENT = np.zeros((0, 3))  # the energy-only call of the kernels that take a gradient
 

@@ -5,7 +5,7 @@ An elastic energy has a block :attr:`pattern` (which vertex pairs it couples),
 :meth:`assemble` (W, ∇W and the PSD-projected Hessian K in block-CSR form).
 
 - :class:`FemElastic`: the finite-element cloth of ``implicit``, ``explicit`` and ``vbd``: the
-  sum of the Model's ``terms`` (:mod:`clothtool.sim.terms`): Baraff–Witkin stretch and shear in
+  sum of the Model's ``terms`` (:mod:`clothtool.sim.energies.terms`): Baraff–Witkin stretch and shear in
   Kim's form, plate, dihedral or quadratic bending, and a garment's stitches while it is sewn;
 - :class:`SpringElastic`: the spring network of ``mass-spring``
   (``springs``), Σ ½k_e(‖x_i − x_j‖ − L_e)² with PSD-clamped spring Hessians.
@@ -16,7 +16,7 @@ from functools import cached_property
 import numpy as np
 
 from clothtool.sim.linalg.blocks import BlockPattern
-from clothtool.sim.springs import spring_assemble, spring_energy
+from clothtool.sim.energies.springs import spring_assemble, spring_energy
 
 
 class FemElastic:

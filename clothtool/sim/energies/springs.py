@@ -1,5 +1,5 @@
 """The spring network shared by ``mass-spring``, ``pbd``, ``xpbd`` and ``projective``: an
-elastic energy like :mod:`clothtool.sim.membrane` and :mod:`clothtool.sim.bending`.
+elastic energy like :mod:`clothtool.sim.energies.membrane` and :mod:`clothtool.sim.energies.bending`.
 
 Springs come from the mesh (course notes: "store every triangle edge, sort, remove
 duplicates"): every triangle edge is a spring, and with bending on, every hinge
@@ -61,7 +61,7 @@ class Springs:
 
 
 def build_springs(model):
-    """Springs of a :class:`~clothtool.sim.model.Model` (see the module docstring)."""
+    """Springs of a :class:`~clothtool.sim.model.model.Model` (see the module docstring)."""
     faces = model.faces
     n = model.n_vertices
     rest3d = model.mesh.rest3d

@@ -5,7 +5,7 @@ distance φ < margin) is projected out along the surface normal n to φ = margin
 its inward normal velocity, so no output frame has a vertex inside a collider. Contact
 is per vertex: edges and faces can still cut a collider thinner than the mesh spacing.
 The implicit method puts every collider into its contact barrier instead
-(:mod:`clothtool.sim.contact`).
+(:mod:`clothtool.sim.solve.contact`).
 """
 
 import numpy as np

@@ -6,7 +6,7 @@ panels (as the two half-edges of one edge of an oriented surface do, so the sewn
 keeps one orientation) and have the same rest length in the pattern within
 ``mesh.seam_tolerance`` (relative), or the seam would be sewn under strain.
 
-Sewing is the :class:`~clothtool.sim.terms.Stitch` term W = ½ Σ k_i ‖x_{a_i} − x_{b_i}‖² in the
+Sewing is the :class:`~clothtool.sim.energies.terms.Stitch` term W = ½ Σ k_i ‖x_{a_i} − x_{b_i}‖² in the
 incremental potential, so it goes through the same Newton steps, CCD and self-collision
 barrier as everything else and stays intersection-free; k_i = ``mesh.sewing.stiffness`` ×
 the seam length around pair i (the mean of its sides' half-edges), so a seam pulls with the
@@ -22,7 +22,7 @@ the run, and no hinge bends across it; the welded seam is closed (0 mm) and bend
 import numpy as np
 
 from clothtool.errors import InputError, NumericalError
-from clothtool.sim.mesh import RestMesh
+from clothtool.sim.model.mesh import RestMesh
 
 
 WELD = 1.25  # default weld distance in self-collision thicknesses: the barrier reaches a little

@@ -6,7 +6,7 @@ materials"; Gast et al. 2015, "Optimization integrator for large time steps")
     E(x) = 1/(2ĥ²) ‖x − x̃‖²_M − Σ m_v g·x_v + W(x) + Φ(x) + 1/2 (x − b)ᵀ D (x − b)
 
 and sets v_{n+1} = (x − b)/ĥ, where W is the method's elastic energy
-(:mod:`clothtool.sim.energy`) and, per ``solver.integrator``:
+(:mod:`clothtool.sim.energies.energy`) and, per ``solver.integrator``:
 
 - ``euler`` (backward Euler): ĥ = h, b = x_n, x̃ = x_n + h v_n;
 - ``bdf2``: BDF2, x_{n+1} − (4/3)x_n + (1/3)x_{n−1} = ĥ v_{n+1} and
@@ -21,8 +21,8 @@ seconds and K the PSD-projected elastic Hessian at x_n (Baraff & Witkin 1998), s
 damping force is −βK v_{n+1} with the integrator's own velocity, and Φ = 0; with
 ``material.damping_model: strain`` stretch is taken out of D (its terms then carry β, as
 per-panel damping's do) and damped by the dissipation potential Φ of the fibres' length
-change (:mod:`clothtool.sim.dissipation`), invariant under rigid motions of each triangle.
-Collider friction uses ĥ the same way (:mod:`clothtool.sim.collide`).
+change (:mod:`clothtool.sim.energies.dissipation`), invariant under rigid motions of each triangle.
+Collider friction uses ĥ the same way (:mod:`clothtool.contact.projection`).
 
 Each Newton step solves (M/ĥ² + K(x) + D) Δx = −∇E(x) by filtered PCG
 (:mod:`clothtool.sim.linalg.pcg`); with ``line_search`` its length is halved (at most
@@ -44,7 +44,7 @@ the PCG guess h v_n: that is exactly Baraff–Witkin's linearised step
 
 Vertices held by pins are constrained in the solve through the filter.
 
-With contact (colliders or self-collision, :mod:`clothtool.sim.contact`, for the methods
+With contact (colliders or self-collision, :mod:`clothtool.sim.solve.contact`, for the methods
 that support it) the potential gains the contact barrier and the friction potential,
 Newton starts from x_n (collision-free) with the PCG guess x̃ − x_n,
 and every Newton step is cut to its collision-free fraction before the line search, which
@@ -55,18 +55,18 @@ step is taken as far as it is collision-free (E need not fall: the prescribed mo
 energy), and a step that does not bring them there in four times ``newton_iterations`` is a
 numerical failure. A converged step re-lags the friction pairs and goes on while that
 changes the velocities by more than ``newton_tolerance``. Without barrier contact,
-spheres and planes project vertices out after the step (:mod:`clothtool.sim.collide`).
+spheres and planes project vertices out after the step (:mod:`clothtool.contact.projection`).
 """
 
 import numpy as np
 
 from clothtool.errors import NumericalError
-from clothtool.sim.collide import resolve_collisions
-from clothtool.sim.contact import BarrierContact
-from clothtool.sim.dissipation import StretchDissipation
-from clothtool.sim.energy import FemElastic
-from clothtool.sim.filter import apply_filter
-from clothtool.sim.integrator import Integrator, StepReport, gravity_potential, mass_weighted
+from clothtool.contact.projection import resolve_collisions
+from clothtool.sim.solve.contact import BarrierContact
+from clothtool.sim.energies.dissipation import StretchDissipation
+from clothtool.sim.energies.energy import FemElastic
+from clothtool.sim.linalg.filter import apply_filter
+from clothtool.sim.solve.integrator import Integrator, StepReport, gravity_potential, mass_weighted
 from clothtool.sim.linalg.blocks import BlockMatrix, ConstraintFilter
 from clothtool.sim.linalg.pairs import NO_PAIRS
 from clothtool.sim.linalg.pcg import filtered_pcg, make_preconditioner
@@ -101,7 +101,7 @@ def _filtered(g, kind, normal, constrained):
 class NewtonIntegrator(Integrator):
     """Newton + filtered PCG on the incremental potential of an elastic energy.
 
-    A subclass names its energy (``energy_class``, see :mod:`clothtool.sim.energy`) and
+    A subclass names its energy (``energy_class``, see :mod:`clothtool.sim.energies.energy`) and
     whether it uses ``solver.preconditioner`` (``multigrid``; otherwise block Jacobi).
     """
 
@@ -128,7 +128,7 @@ class NewtonIntegrator(Integrator):
         self._free_mass = float(np.sum(model.mass[model.free]))
         self.preconditioner = make_preconditioner(
             solver.preconditioner if self.multigrid else "jacobi", pattern, model.faces)
-        self.contact = None  # mesh colliders and self-collision (clothtool.sim.contact)
+        self.contact = None  # mesh colliders and self-collision (clothtool.sim.solve.contact)
         if model.contact is not None:
             self.contact = BarrierContact(model.contact, model.mass, model.free, h,
                                           max(model.tri_stretch[:, :2].max(), model.tri_shear.max()),
@@ -243,7 +243,7 @@ class NewtonIntegrator(Integrator):
         self._damping.multiply(displacement, self._damped)
 
     def step(self, state):
-        """Advance state by h in place; returns a :class:`~clothtool.sim.integrator.StepReport`."""
+        """Advance state by h in place; returns a :class:`~clothtool.sim.solve.integrator.StepReport`."""
         model, solver, h = self.model, self.solver, self.h
         matrix, values = self.matrix, self.matrix.values
         x_n, v_n = state.x, state.v

@@ -3,9 +3,9 @@
 A builder collects the cloth (its rest mesh and per-triangle material arrays), the panels'
 own materials, the seams, the pins, the colliders and the attachments, each checked as it
 is added, and :meth:`ModelBuilder.finalize` computes the rest data (D_r⁻¹, rest areas, lumped
-masses m_v = Σ ρ_t A_t/3, hinges), the elastic terms (:mod:`clothtool.sim.terms`) and the block
-pattern they share, and returns the :class:`~clothtool.sim.model.Model`. A sewn garment is
-finalized again after its weld (:func:`clothtool.sim.seams.weld`), from a builder of the
+masses m_v = Σ ρ_t A_t/3, hinges), the elastic terms (:mod:`clothtool.sim.energies.terms`) and the block
+pattern they share, and returns the :class:`~clothtool.sim.model.model.Model`. A sewn garment is
+finalized again after its weld (:func:`clothtool.sim.model.seams.weld`), from a builder of the
 welded mesh.
 """
 
@@ -13,23 +13,23 @@ import numpy as np
 
 from clothtool.errors import InputError
 from clothtool.geometry import hinges
-from clothtool.sim.config import Plane, Sphere
-from clothtool.sim.contact import build_contact_scene
-from clothtool.sim.filter import FREE, PINNED
+from clothtool.sim.model.config import Plane, Sphere
+from clothtool.sim.model.contact_scene import build_contact_scene
+from clothtool.sim.linalg.filter import FREE, PINNED
 from clothtool.sim.linalg.blocks import BlockPattern
-from clothtool.sim.mesh import build_rest_mesh, flat_pattern, rest_edge_matrices
-from clothtool.sim.methods import barrier_contact
-from clothtool.sim.model import Model
-from clothtool.sim.motion import resolve_pin_entries
-from clothtool.sim.schema import suggest
-from clothtool.sim.terms import (DihedralBending, Membrane, NodalMembrane, PlateBending,
+from clothtool.sim.model.mesh import build_rest_mesh, flat_pattern, rest_edge_matrices
+from clothtool.sim.model.methods import barrier_contact
+from clothtool.sim.model.model import Model
+from clothtool.sim.model.motion import resolve_pin_entries
+from clothtool.sim.model.schema import suggest
+from clothtool.sim.energies.terms import (DihedralBending, Membrane, NodalMembrane, PlateBending,
                                  QuadraticBending, Stitch, Term)
 
 DEGENERATE = 1e-12  # rest triangle area relative to its squared longest edge
 
 
 def build_model(config):
-    """Model from a validated :class:`~clothtool.sim.config.Config`: config → builder → Model."""
+    """Model from a validated :class:`~clothtool.sim.model.config.Config`: config → builder → Model."""
     return ModelBuilder.from_config(config).finalize()
 
 
@@ -52,7 +52,7 @@ class ModelBuilder:
 
     @classmethod
     def from_config(cls, config):
-        from clothtool.sim.seams import add_config_seams
+        from clothtool.sim.model.seams import add_config_seams
 
         builder = cls()
         builder.add_cloth(build_rest_mesh(config.mesh), config.material)
@@ -67,7 +67,7 @@ class ModelBuilder:
 
     def add_cloth(self, mesh, material):
         """The rest mesh and one material for every triangle (``material``, a
-        :class:`~clothtool.sim.config.Material`)."""
+        :class:`~clothtool.sim.model.config.Material`)."""
         n, faces = len(mesh.positions), mesh.faces
         where = f"{mesh.path}: " if mesh.path is not None else "mesh: "
         if faces.min() < 0 or faces.max() >= n:
@@ -147,18 +147,18 @@ class ModelBuilder:
         return self
 
     def add_attachments(self, attach, key="scene.attach"):
-        """Vertices carried by a collider's surface (:mod:`clothtool.sim.attach`): moving pins."""
-        from clothtool.sim.attach import check_attach
+        """Vertices carried by a collider's surface (:mod:`clothtool.sim.model.attach`): moving pins."""
+        from clothtool.sim.model.attach import check_attach
 
         self.attach = attach
         self.attach_vertices = check_attach(attach, self.mesh, self.pinned, key)
         return self
 
     def welded(self, model, state):
-        """(builder, state) of the garment with its seams welded (:func:`clothtool.sim.seams.weld`):
+        """(builder, state) of the garment with its seams welded (:func:`clothtool.sim.model.seams.weld`):
         the same triangles on fewer vertices, each with its rest shape and material, pins and
         attachments renumbered, no stitches."""
-        from clothtool.sim.seams import weld
+        from clothtool.sim.model.seams import weld
 
         (mesh, origin, file_vertex, pinned, motions), state = weld(self, model, state)
         out = ModelBuilder()
@@ -175,7 +175,7 @@ class ModelBuilder:
     # ------------------------------------------------------------------ finalize
 
     def finalize(self):
-        """The :class:`~clothtool.sim.model.Model` of everything added."""
+        """The :class:`~clothtool.sim.model.model.Model` of everything added."""
         mesh, config = self.mesh, self.config
         n, faces = len(mesh.positions), mesh.faces
         dr_inv = np.linalg.inv(self.dr)
@@ -185,11 +185,11 @@ class ModelBuilder:
             raise InputError(f"mesh: vertex {np.flatnonzero(mass == 0)[0]} belongs to no triangle")
 
         # the methods with barrier contact take every collider into it; the others project
-        # vertices out of spheres and planes (clothtool.sim.collide)
+        # vertices out of spheres and planes (clothtool.contact.projection)
         contact = build_contact_scene(config, mesh) if barrier_contact(config) else None
         pinned, pin_motions = self.pinned, list(self.pin_motions)
         if self.attach and not len(self.stitches):  # a garment is attached once it is sewn
-            from clothtool.sim.attach import attach_motions
+            from clothtool.sim.model.attach import attach_motions
 
             attached = attach_motions(self.attach, self.attach_vertices, contact.colliders,
                                       mesh.positions, self.attach_time)
@@ -213,7 +213,7 @@ class ModelBuilder:
         bend_model, hinge, hinge_faces, rest_angle, coef, weights = self._bending()
         plate = None
         if bend_model == "hessian":
-            from clothtool.sim.plate import hessian_bending_matrix
+            from clothtool.sim.energies.plate import hessian_bending_matrix
 
             q = hessian_bending_matrix(mesh.uv, faces) * self.tri_bend[0]
             plate = (q.indptr.astype(np.int64), q.indices.astype(np.int64), q.data)
@@ -232,7 +232,7 @@ class ModelBuilder:
         if strain or np.any(beta != beta[0]):
             # per-panel damping: D = (1/ĥ) Σ β_e K_e, β_e per element; with damping_model:
             # strain, stretch is damped by the dissipation potential of β_t k instead
-            # (clothtool.sim.dissipation)
+            # (clothtool.sim.energies.dissipation)
             scaled = self.tri_stretch.copy()
             scaled[:, :2] *= beta[:, None]
             if strain:
@@ -285,7 +285,7 @@ class ModelBuilder:
         k_b the mean of the hinge's two triangles'; empty when bending is off or the mesh has
         no interior edge."""
         from clothtool.geometry import dihedral_angles
-        from clothtool.sim.bending import quadratic_weights
+        from clothtool.sim.energies.bending import quadratic_weights
 
         mesh, material = self.mesh, self.material
         empty = (None, np.zeros((0, 4), np.int64), np.zeros((0, 2), np.int64), np.zeros(0),

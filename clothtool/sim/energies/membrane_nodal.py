@@ -1,7 +1,7 @@
 """Node-based smoothed membrane: Baraff–Witkin stretch and shear on each vertex's smoothed
 strain, so that the sheet bends along any line without stretching. ``material.membrane_model:
 nodal`` puts the stiff warp and weft stretch here and keeps the soft shear on the triangles
-(:mod:`clothtool.sim.membrane`): a selective smoothing of the part that locks.
+(:mod:`clothtool.sim.energies.membrane`): a selective smoothing of the part that locks.
 
 The smoothing is that of the node-based smoothed finite element method (NS-FEM: G. R. Liu,
 T. Nguyen-Thoi, H. Nguyen-Xuan, K. Y. Lam, "A node-based smoothed finite element method
@@ -12,7 +12,7 @@ F. Vertex v owns a third of each triangle t around it, A_v = Σ_{t∋v} A_t/3, a
     C_v = Σ_{t∋v} w_vt F_tᵀF_t,   w_vt = A_t/(3A_v),
 
 so that a sheet bent isometrically (every F_tᵀF_t = I) has C_v = I: averaging F itself would
-shorten F_v where the ring is curved and stiffen the bending. With :mod:`clothtool.sim.membrane`'s
+shorten F_v where the ring is curved and stiffen the bending. With :mod:`clothtool.sim.energies.membrane`'s
 density written in C (‖f0‖ = √C₀₀, ‖f1‖ = √C₁₁, f0·f1 = C₀₁),
 
     W = Σ_v A_v [k_u/2 (√C₀₀ − b_u)² + k_v/2 (√C₁₁ − b_v)² + k_h/2 C₀₁²],
@@ -40,7 +40,7 @@ a vertex with its two-ring.
 import numpy as np
 from numba import njit
 
-from clothtool.sim.membrane import deformation
+from clothtool.sim.energies.membrane import deformation
 from clothtool.vec3 import dot, load
 
 EPS = 1e-12

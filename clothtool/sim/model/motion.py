@@ -12,7 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from clothtool.errors import InputError
-from clothtool.sim.pins import pin_entry_vertices, resolve_pins
+from clothtool.sim.model.pins import pin_entry_vertices, resolve_pins
 
 
 @dataclass(frozen=True)

@@ -1,7 +1,7 @@
 """The registry of simulation methods (``solver.method``): name → class and the config
 features it supports, in one place.
 
-Every method implements the :class:`~clothtool.sim.integrator.Integrator` protocol.
+Every method implements the :class:`~clothtool.sim.solve.integrator.Integrator` protocol.
 A method lists the optional features of a config it handles; a config that asks for
 a feature its method does not support is refused with an
 :class:`~clothtool.errors.InputError` naming the config key. Adding a method is one
@@ -11,7 +11,7 @@ a feature its method does not support is refused with an
 method         what it is
 =============  ==================================================================
 implicit       Baraff–Witkin implicit Euler, Newton + filtered PCG (the default;
-               :mod:`clothtool.sim.solvers.implicit`, :mod:`clothtool.sim.newton`)
+               :mod:`clothtool.sim.solvers.implicit`, :mod:`clothtool.sim.solve.newton`)
 mass-spring    implicit Euler on a spring network, PSD-clamped spring Hessians
 pbd            Position Based Dynamics, Gauss–Seidel, Jacobi or hierarchical, strain
                limiting
@@ -37,10 +37,10 @@ CONTACT = "contact"  # barrier contact (capsules, boxes, meshes, moving collider
 MOVING_PINS = "moving pins"  # scene.pins entries with rotate or translate
 BDF2 = "bdf2"  # solver.integrator: bdf2 (the default; refused only when a config sets it)
 MATERIALS = "per-panel materials"  # materials: per-triangle stiffness, density and bending
-SEAMS = "seams"  # mesh.seams: the stitch term and the weld (clothtool.sim.seams)
+SEAMS = "seams"  # mesh.seams: the stitch term and the weld (clothtool.sim.model.seams)
 ATTACH = "attach"  # scene.attach: vertices carried by a collider's surface (moving pins)
 PANEL_DAMPING = "per-panel damping"  # materials.NAME.damping other than material.damping
-STRAIN_DAMPING = "strain damping"  # material.damping_model: strain (clothtool.sim.dissipation)
+STRAIN_DAMPING = "strain damping"  # material.damping_model: strain (clothtool.sim.energies.dissipation)
 FEATURES = (FRICTION, CONTACT, MOVING_PINS, BDF2, MATERIALS, SEAMS, ATTACH, PANEL_DAMPING,
             STRAIN_DAMPING)
 
@@ -76,7 +76,7 @@ METHODS = {m.name: m for m in (
 
 
 def requested_features(config, given=()):
-    """(feature, config key) for each optional feature a :class:`~clothtool.sim.config.Config`
+    """(feature, config key) for each optional feature a :class:`~clothtool.sim.model.config.Config`
     asks for; ``given``: the dotted keys the config file sets (a default ``bdf2`` is not a
     request: the methods without it step by their own first-order scheme)."""
     out = []
@@ -126,6 +126,6 @@ def check_supported(config, given=()):
 
 
 def make_integrator(model, solver, h):
-    """The integrator of ``solver.method`` (a :class:`~clothtool.sim.config.Solver`) for a model
+    """The integrator of ``solver.method`` (a :class:`~clothtool.sim.model.config.Solver`) for a model
     and a step h."""
     return METHODS[solver.method].load()(model, solver, h)

@@ -3,7 +3,7 @@
 Every problem is an :class:`~clothtool.errors.InputError` whose one-line message names the
 file and the dotted key (``material.stretch``), says what is wrong and, for an unknown key,
 suggests the closest valid one. The toolkit the sections are declared with is
-:mod:`clothtool.sim.schema`: a key is one :func:`~clothtool.sim.schema.setting` line (default
+:mod:`clothtool.sim.model.schema`: a key is one :func:`~clothtool.sim.model.schema.setting` line (default
 and check), a section one dataclass plus its line in :class:`Config`, a collider kind one
 dataclass plus its entry in ``COLLIDER_KINDS``; what no single key can check is the section's
 ``finish``.
@@ -23,8 +23,8 @@ from typing import Mapping
 import yaml
 
 from clothtool.errors import InputError
-from clothtool.sim import methods
-from clothtool.sim.schema import (Section, as_dict, choice, choices, flag, integer, number, one_of,
+from clothtool.sim.model import methods
+from clothtool.sim.model.schema import (Section, as_dict, choice, choices, flag, integer, number, one_of,
                                   pair_or_number, path, resolve_paths, section, setting,
                                   suggest, tagged, type_error, vector3)
 
@@ -346,7 +346,7 @@ class SelfCollision(Section):
 
 def pin_vertices(value, key):
     """A pin-set name or a vertex index (indices are checked against the mesh later)."""
-    from clothtool.sim.pins import PIN_SETS
+    from clothtool.sim.model.pins import PIN_SETS
 
     if isinstance(value, bool) or not isinstance(value, (int, str)):
         raise type_error(key, "a pin-set name or a vertex index", value)

@@ -1,8 +1,8 @@
 """The Model: everything about a run that does not change while it runs (made by
-:mod:`clothtool.sim.builder`).
+:mod:`clothtool.sim.model.builder`).
 
 Rest data per triangle (D_r⁻¹, rest area), lumped masses m_v = Σ ρA/3, the
-elastic terms that are switched on (:mod:`clothtool.sim.terms`) with their per-element
+elastic terms that are switched on (:mod:`clothtool.sim.energies.terms`) with their per-element
 parameters (per-triangle stiffness, per-hinge bending), per-hinge bending data,
 pins, colliders, and the block pattern of the system matrix with each element's
 block slots, and the spring network of the spring-based methods (built on first use,
@@ -16,7 +16,7 @@ from functools import cached_property
 import numpy as np
 
 from clothtool.sim.linalg.blocks import BlockPattern
-from clothtool.sim.state import State
+from clothtool.sim.model.state import State
 
 
 @dataclass
@@ -34,7 +34,7 @@ class Model:
     hinge_rest_angle: np.ndarray  # (H,)
     hinge_coef: np.ndarray  # (H,) c = k_b ‖ē‖² / (2(Ā_k + Ā_l))
     hinge_weights: np.ndarray | None  # (H, 4) for the quadratic model
-    plate: tuple | None  # (ptr, col, val): k_b Q of the hessian model, CSR (clothtool.sim.plate)
+    plate: tuple | None  # (ptr, col, val): k_b Q of the hessian model, CSR (clothtool.sim.energies.plate)
     pinned: np.ndarray  # (P,) vertex indices
     free: np.ndarray  # (N,) bool
     kind: np.ndarray  # (N,) int8 constraint kind: FREE or PINNED
@@ -50,10 +50,10 @@ class Model:
     terms: list = field(default_factory=list)  # the elastic terms FemElastic sums
     tri_stretch: np.ndarray | None = None  # (M, 4) each triangle's k_u, k_v, b_u, b_v
     tri_shear: np.ndarray | None = None  # (M,) each triangle's k_shear
-    stitches: object = None  # the Stitch term while a garment is sewn (clothtool.sim.seams)
+    stitches: object = None  # the Stitch term while a garment is sewn (clothtool.sim.model.seams)
     damping_terms: list | None = None  # shear and bending damping: the terms with stiffness × β_e
     damping_constant: np.ndarray | None = None  # their constant Hessian blocks
-    stretch_damping: np.ndarray | None = None  # (M, 2) β_t k_u, β_t k_v (clothtool.sim.dissipation)
+    stretch_damping: np.ndarray | None = None  # (M, 2) β_t k_u, β_t k_v (clothtool.sim.energies.dissipation)
     origin: np.ndarray | None = None  # (N, 3) positions at t = 0 when not mesh.positions (a weld)
     file_vertex: np.ndarray | None = None  # (N_file,) model vertex of each file vertex (a weld)
 
@@ -93,14 +93,14 @@ class Model:
     @cached_property
     def springs(self):
         """The spring network of ``mass-spring``, ``pbd``, ``xpbd`` and ``projective``
-        (:func:`~clothtool.sim.springs.build_springs`), built once."""
-        from clothtool.sim.springs import build_springs
+        (:func:`~clothtool.sim.energies.springs.build_springs`), built once."""
+        from clothtool.sim.energies.springs import build_springs
 
         return build_springs(self)
 
     def initial_state(self):
         """Rest positions at rest, pushed out of colliders."""
-        from clothtool.sim.collide import resolve_collisions
+        from clothtool.contact.projection import resolve_collisions
 
         state = State(self.mesh.positions.copy(), np.zeros_like(self.mesh.positions))
         if self.has_colliders:

@@ -23,7 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from clothtool.errors import InputError
-from clothtool.sim.motion import rigid_motion
+from clothtool.sim.model.motion import rigid_motion
 
 DEGENERATE = 1e-12  # triangle area relative to its squared longest edge
 

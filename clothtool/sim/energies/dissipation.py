@@ -11,7 +11,7 @@ potential of the actual strain change over the step,
 
     Φ(x) = 1/(2ĥ) Σ_t A_t [β_t k_u (‖f0(x)‖ − L_0)² + β_t k_v (‖f1(x)‖ − L_1)²]
 
-(f0, f1 the columns of F, :mod:`clothtool.sim.membrane`), with the integrator's own
+(f0, f1 the columns of F, :mod:`clothtool.sim.energies.membrane`), with the integrator's own
 strain rate: L = ‖f(x_n)‖ for backward Euler, the BDF2 combination (4‖f(x_n)‖ −
 ‖f(x_{n−1})‖)/3 for BDF2 (so (‖f(x)‖ − L)/ĥ is BDF2's derivative of the fibre length);
 on BDF2's first step L = ‖f(x_0)‖, since its Taylor history x_{−1} is no shape of the
@@ -26,7 +26,7 @@ block with rest length L); the solver takes it with c clamped at 0 (PSD).
 import numpy as np
 from numba import njit
 
-from clothtool.sim.membrane import add_triangle, deformation_gradient
+from clothtool.sim.energies.membrane import add_triangle, deformation_gradient
 from clothtool.vec3 import dot, load
 
 EPS = 1e-12
