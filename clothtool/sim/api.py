@@ -25,6 +25,7 @@ class SimulationResult:
     substeps: int = 0
     first_step_s: float = 0.0  # the first solver step, which includes compiling the kernels
     step_s: list = field(default_factory=list)  # wall time of every later solver step
+    notes: list = field(default_factory=list)  # what the run found and did (the log's lines)
 
     def describe(self):
         steps = max(self.steps, 1)
@@ -40,12 +41,14 @@ class SimulationResult:
                 + f"max stretch {self.max_stretch:.4f})")
 
 
-def simulate(config_or_path, *, output_dir=None, overrides=None, progress=True):
+def simulate(config_or_path, *, output_dir=None, overrides=None, progress=True, log=None):
     """Run a simulation and write its frames; returns a :class:`SimulationResult`.
 
     ``config_or_path``: a YAML path, a dict, or a loaded :class:`Config`.
     ``output_dir`` overrides ``output.dir`` (relative to the current folder).
     ``overrides``: dotted keys → values, as in :func:`~clothtool.sim.model.config.load_config`.
+    ``log``: called with each line of what the run finds and does (the seams welded at the
+    start, the sewing's stiffness), as it happens; the lines are also the result's ``notes``.
     Raises :class:`~clothtool.errors.InputError` for a bad config or output path and
     :class:`~clothtool.errors.NumericalError` when the run blows up; frames
     written before that stay valid.
@@ -65,9 +68,21 @@ def simulate(config_or_path, *, output_dir=None, overrides=None, progress=True):
     else:
         config = load_config(config_or_path, overrides=overrides)
     out_dir = Path(output_dir) if output_dir is not None else config.output.dir
+    notes = []
+
+    def note(line):
+        notes.append(line)
+        if log is not None:
+            log(line)
+
     builder = ModelBuilder.from_config(config)
     model = builder.finalize()
-    written_mesh = model.mesh  # frames keep the file's vertices and faces, after a weld too
+    # frames keep the file's vertices and faces, after a weld too
+    written_mesh = model.mesh if builder.file_mesh is None else builder.file_mesh
+    for a, b, count, length in builder.closed_seams:
+        note(f"mesh: welded the closed seam {a}–{b} at the start: {count} vertex pairs, "
+             f"{length:.4g} m (mesh.weld_closed, mesh.weld_tolerance "
+             f"{config.mesh.weld_tolerance:g} m)")
     integrator = make_integrator(model, config.solver, config.step)
     state = model.initial_state()
     frames, every, substeps = config.time.frames, config.output.every, config.solver.substeps
@@ -136,7 +151,7 @@ def simulate(config_or_path, *, output_dir=None, overrides=None, progress=True):
                             totals.cg_iterations, worst_stretch, time.perf_counter() - started,
                             sweeps=totals.sweeps, substeps=totals.substeps,
                             first_step_s=step_times[0] if step_times else 0.0,
-                            step_s=step_times[1:])
+                            step_s=step_times[1:], notes=notes)
 
 
 def _write_config(config, out_dir):

@@ -123,7 +123,9 @@ class Sewing(Section):
 class MeshSpec(Section):
     """Exactly one of ``grid``, ``ply`` and ``obj``. ``uv_scale``: metres per uv unit of a
     file's texture coordinates. ``seams``: boundary polylines of panels sewn together
-    (``sewing``), their two sides' rest lengths within ``seam_tolerance`` (relative)."""
+    (``sewing``), their two sides' rest lengths within ``seam_tolerance`` (relative).
+    ``weld_closed``: seams already closed in the file (boundary vertices of different panels
+    within ``weld_tolerance`` m of each other) are welded at the start."""
 
     grid: GridSpec | None = section(GridSpec, optional=True)
     ply: Path | None = setting(None, path)
@@ -132,6 +134,8 @@ class MeshSpec(Section):
     seams: tuple = setting((), seam_list)
     seam_tolerance: float = setting(0.02, non_negative)
     sewing: Sewing = section(Sewing)
+    weld_closed: bool = setting(True, flag)
+    weld_tolerance: float = setting(1.0e-4, positive)
 
     def finish(self, given, key):
         if sum(getattr(self, k) is not None for k in ("grid", "ply", "obj")) != 1:

@@ -33,7 +33,7 @@ def add_config_seams(builder, mesh_spec, scene):
     """Check ``mesh.seams`` against the mesh and add its stitches to the builder."""
     if not mesh_spec.seams:
         return
-    mesh = builder.mesh
+    mesh = builder.mesh if builder.file_mesh is None else builder.file_mesh  # the file's vertices
     if mesh.corner_uv is None and mesh.uv is None:
         raise InputError(f"{mesh.path}: mesh.seams need the panels' rest pattern (texture "
                          "coordinates: OBJ vt, PLY face texcoord or s t)")
@@ -51,13 +51,18 @@ def add_config_seams(builder, mesh_spec, scene):
             raise InputError(f"{mesh.path}: {key}: a has {len(sides[0])} vertices and b "
                              f"{len(sides[1])}; a[i] is sewn to b[i]")
         a, b, length = check_seam(mesh, *sides, mesh_spec.seam_tolerance, key)
+        a, b = builder.to_model(a), builder.to_model(b)
+        if np.any(a == b):
+            i = int(np.argmax(a == b))
+            raise InputError(f"{mesh.path}: {key}: a[{i}] and b[{i}] are welded already (a seam "
+                             "closed in the file, mesh.weld_closed)")
         pairs.append(np.stack([a, b], axis=1))
         stiffness.append(mesh_spec.sewing.stiffness * length)
     builder.add_stitches(np.concatenate(pairs), np.concatenate(stiffness))
     builder.sewing = mesh_spec.sewing
     builder.weld_distance = (mesh_spec.sewing.weld if mesh_spec.sewing.weld is not None
                              else WELD * scene.self_collision.thickness)
-    check_apart(mesh, builder.stitches)
+    check_apart(builder.mesh, "lay them out apart before sewing")
 
 
 def _line_groups(mesh):
@@ -196,8 +201,9 @@ def _rest_edge_length(mesh, tri, p, q):
     return float(np.sqrt(d @ d))
 
 
-def check_apart(mesh, pairs):
-    """InputError when two panels cross each other in the file (they must start apart)."""
+def check_apart(mesh, hint):
+    """InputError when two panels cross each other in the file (they must start apart),
+    naming the pair, then ``hint``."""
     from clothtool.contact.intersect import intersecting_pairs
     from clothtool.contact.broadphase import mesh_edges
 
@@ -208,7 +214,7 @@ def check_apart(mesh, pairs):
     edge, face = edges[crossing[0][0]], int(crossing[0][1])
     tri = int(np.flatnonzero(np.isin(mesh.faces, edge).sum(axis=1) == 2)[0])
     raise InputError(f"{mesh.path or 'mesh'}: the panels overlap at the start: triangle {tri} "
-                     f"crosses triangle {face}; lay them out apart before sewing")
+                     f"crosses triangle {face}; {hint}")
 
 
 def seam_gap(model, x):
@@ -273,3 +279,79 @@ def _find(root, v):
         root[v] = root[root[v]]
         v = root[v]
     return v
+
+
+def weld_closed_seams(mesh, tolerance):
+    """(mesh, file_vertex, found) of a garment whose seams are already closed in the file (each
+    panel with its own vertices along a seam, at the same positions, as pattern software
+    exports a sewn garment): boundary vertices of different panels (connected pieces of the
+    mesh) within ``tolerance`` m of each other are welded into one vertex at their mean
+    position; each triangle keeps its own corners' rest shape. ``file_vertex`` (N_file,) is
+    the welded vertex of each vertex of the file, ``found`` a list of (panel, panel, vertices,
+    length m) per pair of panels welded. Nothing to weld: (mesh, None, [])."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+    from scipy.spatial import cKDTree
+
+    n = len(mesh.positions)
+    edges = boundary_edges(mesh.faces)
+    rim = np.unique(np.array(list(edges), np.int64).reshape(-1, 2))
+    if len(rim) < 2:
+        return mesh, None, []
+    close = cKDTree(mesh.positions[rim]).query_pairs(tolerance, output_type="ndarray")
+    if len(close) == 0:
+        return mesh, None, []
+    f = mesh.faces
+    graph = coo_matrix((np.ones(3 * len(f)), (f.ravel(), np.roll(f, 1, axis=1).ravel())),
+                       shape=(n, n))
+    _, panel = connected_components(graph, directed=False)
+    pairs = rim[close]
+    same = np.flatnonzero(panel[pairs[:, 0]] == panel[pairs[:, 1]])
+    if len(same):
+        i, j = (int(v) for v in pairs[same[0]])
+        d = float(np.linalg.norm(mesh.positions[i] - mesh.positions[j]))
+        raise InputError(f"mesh.weld_tolerance: {tolerance:g} m would weld vertices {i} and {j} "
+                         f"of one panel ({_panel_name(mesh, panel, panel[i])}), {d:.3g} m apart; "
+                         "lower it, or set mesh.weld_closed: false")
+    root = np.arange(n)
+    for a, b in pairs:
+        ra, rb = _find(root, a), _find(root, b)
+        root[max(ra, rb)] = min(ra, rb)
+    root = np.array([_find(root, v) for v in range(n)])
+    keep, new = np.unique(root, return_inverse=True)
+    count = np.bincount(new, minlength=len(keep)).astype(np.float64)[:, None]
+    x = np.zeros((len(keep), 3))
+    np.add.at(x, new, mesh.positions)
+    x /= count
+    corner = mesh.corner_uv if mesh.corner_uv is not None else (
+        mesh.uv[f] if mesh.uv is not None else None)
+    rest = x.copy() if corner is not None else None
+    if rest is None:  # a mesh resting in its own shape: the welded vertices' mean rest position
+        rest = np.zeros((len(keep), 3))
+        np.add.at(rest, new, mesh.rest3d)
+        rest /= count
+    welded = RestMesh(x, new[f], None, None, rest, corner, mesh.groups, mesh.path)
+    members = {}  # each weld's panels
+    for v in np.flatnonzero(root != np.arange(n)):
+        members.setdefault(int(root[v]), set()).update((int(panel[v]), int(panel[root[v]])))
+    seams = {}  # (panel, other panel): [vertices of the first, length of its welded edges m]
+    for v, r in enumerate(root):
+        for q in members.get(int(r), ()):
+            if q != panel[v]:
+                seams.setdefault((int(panel[v]), q), [0, 0.0])[0] += 1
+    for i, j in edges:
+        for q in members.get(int(root[i]), set()) & members.get(int(root[j]), set()):
+            if q != panel[i]:
+                seams[(int(panel[i]), q)][1] += float(np.linalg.norm(mesh.positions[j]
+                                                                     - mesh.positions[i]))
+    found = [(_panel_name(mesh, panel, p), _panel_name(mesh, panel, q), count, length)
+             for (p, q), (count, length) in sorted(seams.items()) if p < q]
+    return welded, new, found
+
+
+def _panel_name(mesh, panel, p):
+    """An OBJ group holding panel p's triangles (the smallest), or 'panel p'."""
+    tri = np.flatnonzero(panel[mesh.faces[:, 0]] == p)
+    names = [(len(t), name) for name, t in (mesh.groups or {}).items()
+             if len(t) and np.isin(tri, t).all()]
+    return min(names)[1] if names else f"panel {p}"
