@@ -58,8 +58,9 @@ def simulate(config_or_path, *, output_dir=None, overrides=None, progress=True, 
     from clothtool.sim.model.builder import ModelBuilder
     from clothtool.sim.solve.integrator import StepReport
     from clothtool.sim.model.methods import make_integrator
-    from clothtool.sim.output import CONTACT_COLUMNS, STATS_COLUMNS, FrameWriter
-    from clothtool.sim.model.seams import check_sewing, sewn
+    from clothtool.sim.output import CONTACT_COLUMNS, STATS_COLUMNS, ColliderTrack, FrameWriter
+    from clothtool.sim.model.seams import (check_sewing, sewing_gap_text, sewn, stitch_level,
+                                           tighten)
 
     if isinstance(config_or_path, Config):
         if overrides:
@@ -77,6 +78,7 @@ def simulate(config_or_path, *, output_dir=None, overrides=None, progress=True, 
 
     builder = ModelBuilder.from_config(config)
     model = builder.finalize()
+    raised = False  # has the sewing raised the stitch stiffness
     # frames keep the file's vertices and faces, after a weld too
     written_mesh = model.mesh if builder.file_mesh is None else builder.file_mesh
     for a, b, count, length in builder.closed_seams:
@@ -94,8 +96,14 @@ def simulate(config_or_path, *, output_dir=None, overrides=None, progress=True, 
 
     contact = getattr(integrator, "contact", None)
     columns = STATS_COLUMNS + (CONTACT_COLUMNS if contact is not None else ())
+    usd = "usd" in config.output.format
+    gravity = np.asarray(config.scene.gravity, float)
     with FrameWriter(out_dir, written_mesh.faces, written_mesh.uv, columns,
-                     formats=config.output.format, corner_uv=written_mesh.corner_uv) as writer:
+                     formats=config.output.format, corner_uv=written_mesh.corner_uv,
+                     fps=config.time.fps, panels=written_mesh.groups,
+                     up="Z" if abs(gravity[2]) > abs(gravity[1]) else "Y",
+                     colliders=ColliderTrack(config, written_mesh.positions)
+                     if usd and config.scene.colliders else None) as writer:
 
         def record(frame, report, wall):
             nonlocal written, worst_stretch
@@ -137,12 +145,24 @@ def simulate(config_or_path, *, output_dir=None, overrides=None, progress=True, 
             totals.add(report)
             if model.stitches is not None:  # sewing: weld once every seam pair is close
                 if sewn(model, state.x, builder):
+                    note(f"mesh.seams: sewn and welded at frame {frame} (t = {state.time:.3g} s)"
+                         + (f", the stitch stiffness raised to {stitch_level(builder):.3g} N/m "
+                            "per metre of seam" if raised else ""))
                     builder, state = builder.welded(model, state)
                     model = builder.finalize()
                     integrator = make_integrator(model, config.solver, config.step)
                     contact = integrator.contact
                 else:
+                    if state.time >= config.mesh.sewing.time:
+                        note(f"mesh.seams: not closed at frame {frame}: "
+                             f"{sewing_gap_text(model, state.x)}, the stitch stiffness raised to "
+                             f"{stitch_level(builder):.3g} N/m per metre of seam")
                     check_sewing(model, state.x, state.time, builder, frame)
+                    if tighten(model, state.x, state.time, builder) is not None:
+                        raised = True  # behind the goal: stiffer stitches, the same state
+                        model = builder.finalize()
+                        integrator = make_integrator(model, config.solver, config.step)
+                        contact = integrator.contact
             if frame % every == 0:
                 record(frame, report, time.perf_counter() - t0)
         bar.close()

@@ -40,7 +40,9 @@ class ModelBuilder:
         self.mesh = None
         self.material = None
         self.stitches = np.zeros((0, 2), np.int64)  # (S, 2) vertex pairs sewn together
-        self.stitch_stiffness = np.zeros(0)  # (S,) N/m
+        self.stitch_stiffness = np.zeros(0)  # (S,) N/m, raised while sewing (seams.tighten)
+        self.stitch_stiffness0 = np.zeros(0)  # (S,) N/m as configured
+        self.stitch_gap0 = np.zeros(0)  # (S,) m, each pair's gap at the start
         self.pinned = np.zeros(0, np.int64)
         self.pin_motions = []
         self.config = None  # the config whose scene the colliders come from
@@ -157,6 +159,7 @@ class ModelBuilder:
         """Vertex pairs (S, 2) pulled together by the stitch term, ``stiffness`` (S,) N/m each."""
         self.stitches = np.concatenate([self.stitches, np.asarray(pairs, np.int64)])
         self.stitch_stiffness = np.concatenate([self.stitch_stiffness, stiffness])
+        self.stitch_stiffness0 = self.stitch_stiffness.copy()
         return self
 
     # ------------------------------------------------------------------ the scene
@@ -257,7 +260,7 @@ class ModelBuilder:
                                bend_model, plate, n, hinge, rest_angle, coef, weights,
                                membrane_model)
         if len(self.stitches):
-            terms.append(Stitch(self.stitches, self.stitch_stiffness))
+            terms.append(Stitch(self.stitches, self.stitch_stiffness.copy()))
         pattern = BlockPattern(n, *[t.elements for t in terms])
         constant = _bind(terms, pattern)
         damping_terms = damping_constant = None

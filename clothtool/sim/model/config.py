@@ -39,7 +39,7 @@ METHODS = tuple(methods.METHODS)
 PRECONDITIONERS = ("jacobi", "multigrid")
 PBD_VARIANTS = ("gauss-seidel", "jacobi", "hierarchical")
 INTEGRATORS = ("bdf2", "euler")
-OUTPUT_FORMATS = ("ply", "obj", "mdd")
+OUTPUT_FORMATS = ("ply", "obj", "mdd", "usd")
 
 positive = number(minimum=0, exclusive=True)
 non_negative = number(minimum=0)
@@ -525,7 +525,9 @@ class Output(Section):
     """Where and what a run writes: every ``every``-th frame, in each of ``format``: ``ply``
     (binary PLY frames with the rest uv as ``s t``), ``obj`` (OBJ frames in ``obj/`` with
     the pattern's uv per corner), ``mdd`` (one point cache of every written frame with its
-    time, ``cache/cloth.mdd``, and its base mesh ``cache/cloth.obj``)."""
+    time, ``cache/cloth.mdd``, and its base mesh ``cache/cloth.obj``), ``usd`` (one USD stage
+    ``usd/cloth.usda``: the cloth's points at every written frame, its uv, panels and the
+    colliders with their motion)."""
 
     dir: Path = setting(Path("out"), path)
     every: int = setting(1, integer(minimum=1))

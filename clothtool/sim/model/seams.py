@@ -59,6 +59,9 @@ def add_config_seams(builder, mesh_spec, scene):
         pairs.append(np.stack([a, b], axis=1))
         stiffness.append(mesh_spec.sewing.stiffness * length)
     builder.add_stitches(np.concatenate(pairs), np.concatenate(stiffness))
+    x = builder.mesh.positions
+    builder.stitch_gap0 = np.linalg.norm(x[builder.stitches[:, 0]] - x[builder.stitches[:, 1]],
+                                         axis=1)
     builder.sewing = mesh_spec.sewing
     builder.weld_distance = (mesh_spec.sewing.weld if mesh_spec.sewing.weld is not None
                              else WELD * scene.self_collision.thickness)
@@ -229,6 +232,33 @@ def sewn(model, x, builder):
     return model.stitches is not None and seam_gap(model, x) <= builder.weld_distance
 
 
+LAG, CLOSE = 0.1, 0.5  # the goal gap: held for LAG × sewing.time, then closed in CLOSE × it
+RAISE, MOST = 2.0, 2.0 ** 24  # a pair behind its goal: its stiffness × RAISE, up to MOST × its own
+
+
+def goal_gaps(builder, t):
+    """(S,) the gap each stitch pair should be within at time t: its gap at the start, held
+    for LAG × ``sewing.time`` and then closing at a constant rate to 0 at (LAG + CLOSE) ×
+    ``sewing.time`` (never below the weld distance)."""
+    T = builder.sewing.time
+    left = np.clip(1.0 - (t - LAG * T) / (CLOSE * T), 0.0, 1.0)
+    return np.maximum(builder.stitch_gap0 * left, builder.weld_distance)
+
+
+def tighten(model, x, t, builder):
+    """Raise the stiffness of the stitch pairs behind their goal gap (:func:`goal_gaps`) by
+    RAISE (up to MOST × their own): a seam closes on schedule whatever the panels' stiffness,
+    unless contact holds it open. The builder's largest stiffness N/m per metre of seam after
+    the raise, or None when none was behind."""
+    behind = model.stitches.gaps(x) > goal_gaps(builder, t)
+    k, k0 = builder.stitch_stiffness, builder.stitch_stiffness0
+    behind &= k < MOST * k0
+    if not behind.any():
+        return None
+    k[behind] = np.minimum(k[behind] * RAISE, MOST * k0[behind])
+    return float((k / k0).max()) * builder.sewing.stiffness
+
+
 def check_sewing(model, x, t, builder, frame):
     """NumericalError when the sewing has run ``mesh.sewing.time`` without closing."""
     if model.stitches is None or t < builder.sewing.time:
@@ -239,7 +269,23 @@ def check_sewing(model, x, t, builder, frame):
     raise NumericalError(f"simulation failed at frame {frame}: mesh.seams did not close in "
                          f"mesh.sewing.time ({builder.sewing.time:g} s): vertices {int(a)} and "
                          f"{int(b)} are {gaps[s]:.3g} m apart (mesh.sewing.weld "
-                         f"{builder.weld_distance:g} m); raise mesh.sewing.stiffness or time")
+                         f"{builder.weld_distance:g} m) with the stitch stiffness raised to "
+                         f"{stitch_level(builder):.3g} N/m per metre of seam; contact holds them "
+                         "apart, or raise mesh.sewing.time")
+
+
+def sewing_gap_text(model, x):
+    """'vertices a and b are d mm apart' of the farthest stitch pair."""
+    gaps = model.stitches.gaps(x)
+    s = int(np.argmax(gaps))
+    a, b = model.stitches.elements[s]
+    return f"vertices {int(a)} and {int(b)} are {1e3 * gaps[s]:.3g} mm apart"
+
+
+def stitch_level(builder):
+    """The largest stitch stiffness now, in N/m per metre of seam."""
+    return float((builder.stitch_stiffness / builder.stitch_stiffness0).max()) \
+        * builder.sewing.stiffness
 
 
 def weld(builder, model, state):
