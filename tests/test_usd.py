@@ -111,3 +111,22 @@ def test_an_unwritable_usd_path_is_one_line_and_writes_nothing(tmp_path):
     assert proc.returncode == 2 and proc.stderr.count("\n") == 1, proc.stderr
     assert "usd: output path exists and is not a folder" in proc.stderr
     assert sorted(p.name for p in out.iterdir()) == ["usd"]
+
+
+@pytest.mark.parametrize("fmt, message", [
+    ("abc", "output.format[1]: 'abc': Alembic is not written; write 'usd' and convert it in "
+            "Blender (import USD, export Alembic)"),
+    ("fbx", "output.format[1] must be one of ply, obj, mdd, usd, got 'fbx'"),
+])
+def test_a_format_we_do_not_write_is_one_line_and_writes_nothing(tmp_path, fmt, message):
+    import yaml
+
+    config = tmp_path / "scene.yaml"
+    config.write_text(yaml.safe_dump({**SCENE, "output": {"format": ["ply", fmt]}}))
+    out = tmp_path / "out"
+    proc = subprocess.run([sys.executable, "-c", "from clothtool.cli import run; run()",
+                           "simulate", str(config), "-o", str(out)],
+                          capture_output=True, text=True)
+    assert proc.returncode == 2 and proc.stderr.count("\n") == 1, proc.stderr
+    assert message in proc.stderr
+    assert not out.exists()

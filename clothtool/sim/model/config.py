@@ -520,6 +520,17 @@ class Time(Section):
     frames: int = setting(120, integer(minimum=0))
 
 
+def output_formats(value, key):
+    """``output.format``: names from OUTPUT_FORMATS; Alembic, which is not written, is
+    refused with the way to one."""
+    for i, item in enumerate([value] if isinstance(value, str) else value
+                             if isinstance(value, list) else []):
+        if isinstance(item, str) and item.lower() in ("abc", "alembic"):
+            raise InputError(f"{key}[{i}]: {item!r}: Alembic is not written; write 'usd' and "
+                             "convert it in Blender (import USD, export Alembic)")
+    return choices(OUTPUT_FORMATS)(value, key)
+
+
 @dataclass(frozen=True)
 class Output(Section):
     """Where and what a run writes: every ``every``-th frame, in each of ``format``: ``ply``
@@ -531,7 +542,7 @@ class Output(Section):
 
     dir: Path = setting(Path("out"), path)
     every: int = setting(1, integer(minimum=1))
-    format: tuple = setting(("ply",), choices(OUTPUT_FORMATS))
+    format: tuple = setting(("ply",), output_formats)
 
 
 @dataclass(frozen=True)
