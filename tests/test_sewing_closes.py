@@ -4,6 +4,8 @@ rate to 0 by 0.6 × sewing.time) has its stiffness doubled, so the default ``mes
 sews two panels held at their far edges, which must stretch to meet, from 100 to 10⁶ N/m;
 the stiffness it took is in the log; a seam that contact holds open is named."""
 
+import re
+
 import numpy as np
 import pytest
 
@@ -59,3 +61,19 @@ def test_every_seam_closes_within_sewing_time_from_100_to_a_million_n_per_m(tmp_
     t, sewing_time, gaps, lines = sew(tmp_path, stretch, stretch)
     print(f"stretch {stretch:g} N/m: welded at {t:.3f} s; {lines}")
     assert t <= (LAG + CLOSE) * sewing_time + 0.1
+
+
+def test_a_seam_that_cannot_close_is_logged_naming_the_pair_before_the_error(tmp_path):
+    config, a, b = held_panels(tmp_path, 1000.0, 1000.0, frames=6)
+    config["mesh"]["sewing"] = {"stiffness": 1e-3, "time": 0.1}
+    lines = []
+    with pytest.raises(clothtool.NumericalError, match=r"mesh\.seams did not close in "
+                                                       r"mesh\.sewing\.time \(0\.1 s\): vertices "
+                                                       r"\d+ and \d+ are .* with the stitch "
+                                                       r"stiffness raised to 0\.004 N/m"):
+        clothtool.simulate(config, output_dir=tmp_path / "out", progress=False,
+                           log=lines.append)
+    (line,) = lines
+    assert re.fullmatch(r"mesh\.seams: not closed at frame 3: vertices \d+ and \d+ are [\d.]+ mm "
+                        r"apart, the stitch stiffness raised to 0\.004 N/m per metre of seam",
+                        line), line

@@ -270,8 +270,8 @@ def check_sewing(model, x, t, builder, frame):
                          f"mesh.sewing.time ({builder.sewing.time:g} s): vertices {int(a)} and "
                          f"{int(b)} are {gaps[s]:.3g} m apart (mesh.sewing.weld "
                          f"{builder.weld_distance:g} m) with the stitch stiffness raised to "
-                         f"{stitch_level(builder):.3g} N/m per metre of seam; contact holds them "
-                         "apart, or raise mesh.sewing.time")
+                         f"{stitch_level(builder):.3g} N/m per metre of seam (unless contact holds "
+                         "them apart, a longer mesh.sewing.time closes them)")
 
 
 def sewing_gap_text(model, x):
