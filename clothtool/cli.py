@@ -423,7 +423,8 @@ def simulate(config, output, settings, quiet):
     from clothtool.sim.api import simulate as run
 
     result = run(config, output_dir=output, overrides=list(settings),
-                 progress=_progress_enabled(quiet))
+                 progress=_progress_enabled(quiet),
+                 log=None if quiet else (lambda line: click.echo(line, err=True)))
     if not quiet:
         click.echo(result.describe())
 

@@ -37,7 +37,10 @@ mesh:
   # obj: garment.obj
   # seams: [{a: [10, 11, 12], b: [40, 41, 42]}]   # vertex a[i] sewn to b[i]
   # seam_tolerance: 0.02                        # the sides' rest lengths may differ by 2 %
-  # sewing: {stiffness: 1000.0, weld: null, time: 2.0, gravity: false}
+  # sewing: {stiffness: 1000.0, weld: null, time: 2.0, gravity: false}   # stiffness doubled
+  #                                           # for a pair behind its goal, so seams close in time
+  # weld_closed: true       # seams closed in the file (panels' coincident boundary vertices,
+  # weld_tolerance: 1.0e-4  # within this many m) are welded at the start
 
 material:
   density: 0.2          # kg/m², areal mass density

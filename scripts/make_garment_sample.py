@@ -6,10 +6,15 @@
   walks: the legs swing about the hips by ±LEG_SWING (one stride a second), the arms against
   them, the torso turns about the vertical by ±TURN. The collider reader interpolates linearly
   between frames, so BODY_FPS = 10 is enough for the 30 fps simulation and keeps the files small.
-- skirt.obj: the pattern, two flat trapezoid panels ``g front`` (at z = +GAP_Z, facing +z) and
-  ``g back`` (z = −GAP_Z, facing −z), their per-corner ``vt`` in centimetres of the pattern
-  (``mesh.uv_scale: 0.01``), each TOP cm wide at the waist and BOTTOM cm at the hem, LENGTH cm
-  long. Their side edges are also ``l`` polylines in the groups ``front_left``, ``front_right``,
+- skirt.obj: the pattern, two trapezoid panels ``g front`` (facing +z) and ``g back`` (facing
+  −z), their per-corner ``vt`` in centimetres of the pattern (``mesh.uv_scale: 0.01``), each TOP
+  cm wide at the waist and BOTTOM cm at the hem, LENGTH cm long. They are laid out wrapped
+  around the body, as pattern software arranges panels on an avatar: each row of a panel on an
+  arc around the torso's waist ellipse, offset outward so that the arc is as long as the row
+  (the waist row 6 mm off the body), flaring out to FLARE m and below that taking up the rest of
+  its width in FOLDS folds per panel; the arcs stop SIDE_GAP short of each other at the sides,
+  which sewing closes, and the sewn waist (2 × TOP = 87 cm around) fits the body's (85 cm).
+  Their side edges are also ``l`` polylines in the groups ``front_left``, ``front_right``,
   ``back_left`` and ``back_right``: the seams, named.
 - ../garment.yaml (beside the folder): the scene. The side seams (``mesh.seams``), sewn with
   gravity off while the body stands, the body as an animated mesh collider with friction,
@@ -33,7 +38,8 @@ TORSO_CENTER, TORSO_AXES = np.array([0.0, 1.10, 0.0]), np.array([0.16, 0.33, 0.1
 HEAD_CENTER, HEAD_RADIUS = np.array([0.0, 1.55, 0.0]), 0.10
 HIP, LEG_LENGTH, LEG_RADIUS = np.array([0.085, 0.86, 0.0]), 0.76, 0.065
 SHOULDER, ARM_LENGTH, ARM_RADIUS, ARM_OUT = np.array([0.19, 1.36, 0.0]), 0.55, 0.045, np.radians(50)
-WAIST_Y, GAP_Z, TOP, BOTTOM, LENGTH, NX, NY = 1.12, 0.14, 50.0, 70.0, 45.0, 19, 13
+WAIST_Y, SIDE_GAP, TOP, BOTTOM, LENGTH, NX, NY = 1.12, 0.01, 43.5, 70.0, 45.0, 19, 13
+FLARE, FOLDS = 0.04, 4  # m the skirt stands out from the waist at most, folds per panel
 
 
 def ellipsoid(center, axes, around=28, rings=14):
@@ -116,13 +122,55 @@ def panel():
     return uv, np.array(faces, np.int64)
 
 
+def arc(offset, wave=0.0, width=None, samples=2001):
+    """The arc around the torso at the waist, ``offset`` m out from its ellipse plus ``wave`` m
+    × sin(FOLDS π s), s from 0 to 1 along it (FOLDS folds, none at the ends), stopping where
+    the front and back arcs are SIDE_GAP apart: (points (samples, 2) x, z from one side to the
+    other, its length); with ``width``, the NX points at arc lengths 0 … width."""
+    ax, az = TORSO_AXES[[0, 2]] * np.sqrt(1.0 - ((WAIST_Y - TORSO_CENTER[1]) / TORSO_AXES[1]) ** 2)
+    end = np.arccos(0.5 * SIDE_GAP / (az + offset))
+    phi = np.linspace(-end, end, samples)
+    r = offset + wave * np.sin(FOLDS * np.pi * np.linspace(0.0, 1.0, samples))
+    p = np.stack([(ax + r) * np.sin(phi), (az + r) * np.cos(phi)], axis=1)
+    along = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(p, axis=0), axis=1))])
+    if width is None:
+        return p, along[-1]
+    s = np.linspace(0.0, along[-1], NX)
+    return np.stack([np.interp(s, along, p[:, 0]), np.interp(s, along, p[:, 1])], axis=1), along[-1]
+
+
+def bisect(length, lo, hi):
+    """The x in [lo, hi] where the increasing length(x) is 0 (60 halvings)."""
+    for _ in range(60):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if length(mid) < 0.0 else (lo, mid)
+    return hi
+
+
+def wrapped(uv):
+    """(V, 3) the panel laid around the body (see the module): row by row, the offset whose arc
+    is the row's width, up to FLARE; beyond it the folds' depth that makes up the width; each
+    row below the last by its pattern distance."""
+    out, y, last = np.zeros((len(uv), 3)), WAIST_Y, None
+    for j in range(NY - 1, -1, -1):  # from the waist down
+        width = 0.01 * (uv[j * NX + NX - 1, 0] - uv[j * NX, 0])
+        offset = min(bisect(lambda d: arc(d)[1] - width, -0.05, 0.5), FLARE)
+        wave = bisect(lambda w: arc(offset, w)[1] - width, 0.0, 0.2) if offset == FLARE else 0.0
+        if last is not None:
+            step = 0.01 * LENGTH / (NY - 1)
+            y -= np.sqrt(step * step - (offset - last) ** 2)
+        last = offset
+        xz, _ = arc(offset, wave, width)
+        out[j * NX:(j + 1) * NX] = np.column_stack([xz[:, 0], np.full(NX, y), xz[:, 1]])
+    return out
+
+
 def skirt():
     """(positions, faces, corner uv, groups, seams {name: vertices}, waist vertices)."""
     uv, faces = panel()
     n = len(uv)
-    y = WAIST_Y - 0.01 * (LENGTH - uv[:, 1])  # laid flat, straight down from the waist
-    front = np.column_stack([0.01 * uv[:, 0], y, np.full(n, GAP_Z)])
-    back = np.column_stack([-0.01 * uv[:, 0], y, np.full(n, -GAP_Z)])  # mirrored: faces −z
+    front = wrapped(uv)
+    back = front * [-1.0, 1.0, -1.0]  # turned half round: faces −z
     rows = np.arange(NY) * NX
     seams = {"front_left": rows, "back_left": n + rows + NX - 1,
              "front_right": rows + NX - 1, "back_right": n + rows}
@@ -135,9 +183,9 @@ def skirt():
 
 SCENE = """\
 # A two-panel skirt sewn onto a walking mannequin (scripts/make_garment_sample.py writes this
-# file and {folder}/). The panels lie flat in front of and behind the hips; with gravity off
-# their side seams are sewn and welded while the body stands still, then the waistband is
-# attached to the body and the skirt hangs and swings as the body walks.
+# file and {folder}/). The panels are laid out wrapped around the hips, their sides 1 cm
+# apart; with gravity off their side seams are sewn and welded while the body stands still,
+# then the waistband is attached to the body and the skirt hangs and swings as the body walks.
 # clothtool simulate sample_data/{folder}.yaml -o demo-out/{folder}
 mesh:
   obj: {folder}/skirt.obj

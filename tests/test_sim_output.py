@@ -160,11 +160,11 @@ def test_a_run_refused_at_the_start_writes_no_config(tmp_path):
 
 
 @pytest.mark.parametrize("value, message", [
-    ("stl", r"output.format\[0\] must be one of ply, obj, mdd, got 'stl'"),
+    ("stl", r"output.format\[0\] must be one of ply, obj, mdd, usd, got 'stl'"),
     (["ply", "obj", "ply"], "output.format names 'ply' twice"),
-    ([], "output.format must be a list of ply, obj and mdd, got"),
-    ({"ply": 1}, "output.format must be a list of ply, obj and mdd, got"),
-    (["ply", "obi"], r"output.format\[1\] must be one of ply, obj, mdd, got 'obi' \(did you mean 'obj'\?\)"),
+    ([], "output.format must be a list of ply, obj, mdd and usd, got"),
+    ({"ply": 1}, "output.format must be a list of ply, obj, mdd and usd, got"),
+    (["ply", "obi"], r"output.format\[1\] must be one of ply, obj, mdd, usd, got 'obi' \(did you mean 'obj'\?\)"),
 ])
 def test_bad_format_is_one_line_naming_the_key(value, message):
     with pytest.raises(InputError, match=message):

@@ -25,6 +25,7 @@ class SimulationResult:
     substeps: int = 0
     first_step_s: float = 0.0  # the first solver step, which includes compiling the kernels
     step_s: list = field(default_factory=list)  # wall time of every later solver step
+    notes: list = field(default_factory=list)  # what the run found and did (the log's lines)
 
     def describe(self):
         steps = max(self.steps, 1)
@@ -40,12 +41,14 @@ class SimulationResult:
                 + f"max stretch {self.max_stretch:.4f})")
 
 
-def simulate(config_or_path, *, output_dir=None, overrides=None, progress=True):
+def simulate(config_or_path, *, output_dir=None, overrides=None, progress=True, log=None):
     """Run a simulation and write its frames; returns a :class:`SimulationResult`.
 
     ``config_or_path``: a YAML path, a dict, or a loaded :class:`Config`.
     ``output_dir`` overrides ``output.dir`` (relative to the current folder).
     ``overrides``: dotted keys → values, as in :func:`~clothtool.sim.model.config.load_config`.
+    ``log``: called with each line of what the run finds and does (the seams welded at the
+    start, the sewing's stiffness), as it happens; the lines are also the result's ``notes``.
     Raises :class:`~clothtool.errors.InputError` for a bad config or output path and
     :class:`~clothtool.errors.NumericalError` when the run blows up; frames
     written before that stay valid.
@@ -55,8 +58,9 @@ def simulate(config_or_path, *, output_dir=None, overrides=None, progress=True):
     from clothtool.sim.model.builder import ModelBuilder
     from clothtool.sim.solve.integrator import StepReport
     from clothtool.sim.model.methods import make_integrator
-    from clothtool.sim.output import CONTACT_COLUMNS, STATS_COLUMNS, FrameWriter
-    from clothtool.sim.model.seams import check_sewing, sewn
+    from clothtool.sim.output import CONTACT_COLUMNS, STATS_COLUMNS, ColliderTrack, FrameWriter
+    from clothtool.sim.model.seams import (check_sewing, sewing_gap_text, sewn, stitch_level,
+                                           tighten)
 
     if isinstance(config_or_path, Config):
         if overrides:
@@ -65,9 +69,22 @@ def simulate(config_or_path, *, output_dir=None, overrides=None, progress=True):
     else:
         config = load_config(config_or_path, overrides=overrides)
     out_dir = Path(output_dir) if output_dir is not None else config.output.dir
+    notes = []
+
+    def note(line):
+        notes.append(line)
+        if log is not None:
+            log(line)
+
     builder = ModelBuilder.from_config(config)
     model = builder.finalize()
-    written_mesh = model.mesh  # frames keep the file's vertices and faces, after a weld too
+    raised = False  # has the sewing raised the stitch stiffness
+    # frames keep the file's vertices and faces, after a weld too
+    written_mesh = model.mesh if builder.file_mesh is None else builder.file_mesh
+    for a, b, count, length in builder.closed_seams:
+        note(f"mesh: welded the closed seam {a}–{b} at the start: {count} vertex pairs, "
+             f"{length:.4g} m (mesh.weld_closed, mesh.weld_tolerance "
+             f"{config.mesh.weld_tolerance:g} m)")
     integrator = make_integrator(model, config.solver, config.step)
     state = model.initial_state()
     frames, every, substeps = config.time.frames, config.output.every, config.solver.substeps
@@ -79,8 +96,14 @@ def simulate(config_or_path, *, output_dir=None, overrides=None, progress=True):
 
     contact = getattr(integrator, "contact", None)
     columns = STATS_COLUMNS + (CONTACT_COLUMNS if contact is not None else ())
+    usd = "usd" in config.output.format
+    gravity = np.asarray(config.scene.gravity, float)
     with FrameWriter(out_dir, written_mesh.faces, written_mesh.uv, columns,
-                     formats=config.output.format, corner_uv=written_mesh.corner_uv) as writer:
+                     formats=config.output.format, corner_uv=written_mesh.corner_uv,
+                     fps=config.time.fps, panels=written_mesh.groups,
+                     up="Z" if abs(gravity[2]) > abs(gravity[1]) else "Y",
+                     colliders=ColliderTrack(config, written_mesh.positions)
+                     if usd and config.scene.colliders else None) as writer:
 
         def record(frame, report, wall):
             nonlocal written, worst_stretch
@@ -122,12 +145,24 @@ def simulate(config_or_path, *, output_dir=None, overrides=None, progress=True):
             totals.add(report)
             if model.stitches is not None:  # sewing: weld once every seam pair is close
                 if sewn(model, state.x, builder):
+                    note(f"mesh.seams: sewn and welded at frame {frame} (t = {state.time:.3g} s)"
+                         + (f", the stitch stiffness raised to {stitch_level(builder):.3g} N/m "
+                            "per metre of seam" if raised else ""))
                     builder, state = builder.welded(model, state)
                     model = builder.finalize()
                     integrator = make_integrator(model, config.solver, config.step)
                     contact = integrator.contact
                 else:
+                    if state.time >= config.mesh.sewing.time:
+                        note(f"mesh.seams: not closed at frame {frame}: "
+                             f"{sewing_gap_text(model, state.x)}, the stitch stiffness raised to "
+                             f"{stitch_level(builder):.3g} N/m per metre of seam")
                     check_sewing(model, state.x, state.time, builder, frame)
+                    if tighten(model, state.x, state.time, builder) is not None:
+                        raised = True  # behind the goal: stiffer stitches, the same state
+                        model = builder.finalize()
+                        integrator = make_integrator(model, config.solver, config.step)
+                        contact = integrator.contact
             if frame % every == 0:
                 record(frame, report, time.perf_counter() - t0)
         bar.close()
@@ -136,7 +171,7 @@ def simulate(config_or_path, *, output_dir=None, overrides=None, progress=True):
                             totals.cg_iterations, worst_stretch, time.perf_counter() - started,
                             sweeps=totals.sweeps, substeps=totals.substeps,
                             first_step_s=step_times[0] if step_times else 0.0,
-                            step_s=step_times[1:])
+                            step_s=step_times[1:], notes=notes)
 
 
 def _write_config(config, out_dir):

@@ -8,7 +8,11 @@
   re-imports with its texture (:mod:`clothtool.io.obj_writer`);
 - ``mdd``: ``cache/cloth.mdd``, one point cache of every written frame with its time in
   seconds (:mod:`clothtool.io.mdd`; Blender's Mesh Cache modifier plays it), and its base
-  mesh ``cache/cloth.obj``, the initial state as an OBJ frame.
+  mesh ``cache/cloth.obj``, the initial state as an OBJ frame;
+- ``usd``: ``usd/cloth.usda``, one USD stage: the cloth's mesh with its points sampled at
+  every written frame (time code = frame number, the fps as time codes per second), the
+  pattern's uv as primvar ``st``, a GeomSubset per panel, and each collider as a mesh of its
+  own with its motion (:mod:`clothtool.io.usd`).
 
 Each format other than PLY has a folder of its own, so that every folder holds one format
 and ``clothtool analyze`` reads any of them.
@@ -40,8 +44,8 @@ STATS_COLUMNS = ("frame", "time", "kinetic", "elastic", "gravity", "newton_itera
 # no pair is within reach of the barrier's candidates)
 CONTACT_COLUMNS = ("contacts", "min_separation")
 PLY_FRAME, OBJ_FRAME = re.compile(r"frame_\d{5,}\.ply"), re.compile(r"frame_\d{5,}\.obj")
-OBJ_DIR, CACHE_DIR = "obj", "cache"  # folders inside the output folder, one format each
-CACHE, CACHE_BASE = "cloth.mdd", "cloth.obj"
+OBJ_DIR, CACHE_DIR, USD_DIR = "obj", "cache", "usd"  # folders in the output folder, one format each
+CACHE, CACHE_BASE, USD = "cloth.mdd", "cloth.obj", "cloth.usda"
 
 
 def frame_path(out_dir, frame, fmt="ply"):
@@ -55,13 +59,15 @@ class FrameWriter:
 
     ``uv`` (N, 2): the rest coordinates per vertex (the PLY's ``s t``), or None;
     ``corner_uv`` (M, 3, 2): per corner (the OBJ's ``vt``; default ``uv[faces]``);
-    ``formats``: some of ``output.format``'s 'ply', 'obj', 'mdd'. Frames, caches and
+    ``formats``: some of ``output.format``'s 'ply', 'obj', 'mdd', 'usd'; for 'usd', ``fps``,
+    ``panels`` {name: triangles}, ``up`` ('Y' or 'Z') and ``colliders`` (a
+    :class:`ColliderTrack` or None). Frames, caches and
     ``stats.csv`` left in the folder by an earlier run are removed first, so the folder
     never mixes two runs; other files are left alone.
     """
 
     def __init__(self, out_dir, faces, uv, columns=STATS_COLUMNS, *, formats=("ply",),
-                 corner_uv=None):
+                 corner_uv=None, fps=30.0, panels=None, up="Y", colliders=None):
         self.out_dir = Path(out_dir)
         self.columns = tuple(columns)
         self.faces = faces
@@ -73,8 +79,13 @@ class FrameWriter:
             corner_uv = uv[faces]
         self._obj = ObjWriter(faces, corner_uv) if {"obj", "mdd"} & set(self.formats) else None
         self._cache = None
+        self._colliders = colliders
         folders = [self.out_dir] + [self.out_dir / name for fmt, name in
-                                    (("obj", OBJ_DIR), ("mdd", CACHE_DIR)) if fmt in self.formats]
+                                    (("obj", OBJ_DIR), ("mdd", CACHE_DIR), ("usd", USD_DIR))
+                                    if fmt in self.formats]
+        for folder in folders:  # every folder checked before any is made: nothing half-made
+            if folder.exists() and not folder.is_dir():
+                raise InputError(f"{folder}: output path exists and is not a folder")
         for folder in folders:
             try:
                 folder.mkdir(parents=True, exist_ok=True)
@@ -90,6 +101,13 @@ class FrameWriter:
         self._stats = csv.writer(self._stats_file)
         self._stats.writerow(self.columns)
         self._stats_file.flush()
+        self._usd = None
+        if "usd" in self.formats:
+            from clothtool.io.usd import UsdaWriter
+
+            self._usd = UsdaWriter(self.out_dir / USD_DIR / USD, faces, corner_uv, panels,
+                                   fps=fps, up=up,
+                                   colliders=colliders.meshes if colliders is not None else ())
 
     def _remove_earlier_run(self):
         for old in self.out_dir.iterdir():
@@ -99,9 +117,9 @@ class FrameWriter:
             for old in (self.out_dir / OBJ_DIR).iterdir():
                 if OBJ_FRAME.fullmatch(old.name):
                     old.unlink()
-        for name in (CACHE, CACHE_BASE):
-            if (self.out_dir / CACHE_DIR / name).is_file():
-                (self.out_dir / CACHE_DIR / name).unlink()
+        for folder, name in ((CACHE_DIR, CACHE), (CACHE_DIR, CACHE_BASE), (USD_DIR, USD)):
+            if (self.out_dir / folder / name).is_file():
+                (self.out_dir / folder / name).unlink()
 
     def write_frame(self, frame, positions, time):
         """Write ``frame`` (positions (N, 3)) at ``time`` seconds in every format."""
@@ -115,6 +133,9 @@ class FrameWriter:
                 self._obj.write(self.out_dir / CACHE_DIR / CACHE_BASE, positions)
                 self._cache = MddWriter(self.out_dir / CACHE_DIR / CACHE, len(positions))
             self._cache.add(time, positions)
+        if self._usd is not None:
+            self._usd.add(frame, positions, self._colliders.positions(time)
+                          if self._colliders is not None else ())
 
     def write_stats(self, row):
         self._stats.writerow([_format(row[name]) for name in self.columns])
@@ -125,6 +146,8 @@ class FrameWriter:
         self._stats_file.close()
         if self._cache is not None:
             self._cache.close(ok)
+        if self._usd is not None:
+            self._usd.close(ok)
 
     def __enter__(self):
         return self
@@ -132,6 +155,24 @@ class FrameWriter:
     def __exit__(self, kind, value, traceback):
         # a blow-up keeps the frames before it, in the cache too; any other failure writes none
         self.close(ok=kind is None or issubclass(kind, NumericalError))
+
+
+class ColliderTrack:
+    """The colliders of a run's config as triangle meshes of fixed topology
+    (:class:`clothtool.sim.scene.RunScene`: a plane a square patch about the cloth's initial
+    centre): ``meshes`` [(name, faces)], :meth:`positions` at time t."""
+
+    def __init__(self, config, x0):
+        from clothtool.sim.scene import RunScene
+
+        self.scene = RunScene(config)
+        self.centre = x0.mean(axis=0)
+        self.extent = max(float(np.ptp(x0, axis=0).max()), 1e-3)
+        self.meshes = [(s.key.replace("scene.", "").replace("[", "_").replace("]", ""), s.faces)
+                       for s in self.scene.surfaces(0.0, self.centre, self.extent)]
+
+    def positions(self, t):
+        return [s.vertices for s in self.scene.surfaces(t, self.centre, self.extent)]
 
 
 def _format(value):

@@ -40,7 +40,9 @@ class ModelBuilder:
         self.mesh = None
         self.material = None
         self.stitches = np.zeros((0, 2), np.int64)  # (S, 2) vertex pairs sewn together
-        self.stitch_stiffness = np.zeros(0)  # (S,) N/m
+        self.stitch_stiffness = np.zeros(0)  # (S,) N/m, raised while sewing (seams.tighten)
+        self.stitch_stiffness0 = np.zeros(0)  # (S,) N/m as configured
+        self.stitch_gap0 = np.zeros(0)  # (S,) m, each pair's gap at the start
         self.pinned = np.zeros(0, np.int64)
         self.pin_motions = []
         self.config = None  # the config whose scene the colliders come from
@@ -49,13 +51,19 @@ class ModelBuilder:
         self.attach, self.attach_vertices = (), []  # scene.attach and each entry's vertices
         self.attach_time = 0.0  # when the attachments take hold (a sewn garment: its weld)
         self.sewing, self.weld_distance = None, 0.0  # mesh.sewing and its weld distance (m)
+        self.file_mesh = None  # the mesh as the file gives it, when its closed seams are welded
+        self.closed_seams = []  # (panel, panel, vertices, length m) welded at the start
 
     @classmethod
     def from_config(cls, config):
         from clothtool.sim.model.seams import add_config_seams
 
         builder = cls()
-        builder.add_cloth(build_rest_mesh(config.mesh), config.material)
+        mesh = build_rest_mesh(config.mesh)
+        if config.mesh.weld_closed:
+            builder.add_closed_cloth(mesh, config.material, config.mesh.weld_tolerance)
+        else:
+            builder.add_cloth(mesh, config.material)
         builder.add_materials(config.materials)
         add_config_seams(builder, config.mesh, config.scene)
         builder.add_pins(config.scene.pins)
@@ -91,6 +99,28 @@ class ModelBuilder:
         self.tri_bend = np.full(m, material.bend)
         self.tri_damping = np.full(m, material.damping)
         return self
+
+    def add_closed_cloth(self, mesh, material, tolerance):
+        """The cloth with its closed seams welded (:func:`clothtool.sim.model.seams.weld_closed_seams`):
+        seams, pins and attachments added later name the file's vertices."""
+        from clothtool.sim.model.seams import check_apart, weld_closed_seams
+
+        welded, file_vertex, found = weld_closed_seams(mesh, tolerance)
+        self.add_cloth(welded, material)
+        if file_vertex is not None:
+            self.file_mesh, self.file_vertex, self.closed_seams = mesh, file_vertex, found
+            check_apart(welded, "the welded garment crosses itself")
+        return self
+
+    def to_model(self, ids):
+        """Model vertices of the file's vertices ``ids``."""
+        ids = np.asarray(ids, np.int64)
+        return ids if self.file_vertex is None else self.file_vertex[ids]
+
+    @property
+    def n_file(self):
+        """The file's vertex count."""
+        return len((self.mesh if self.file_mesh is None else self.file_mesh).positions)
 
     def add_materials(self, materials, key="materials"):
         """Each panel's own material (``{name: PanelMaterial}``): its triangles are an OBJ
@@ -129,14 +159,16 @@ class ModelBuilder:
         """Vertex pairs (S, 2) pulled together by the stitch term, ``stiffness`` (S,) N/m each."""
         self.stitches = np.concatenate([self.stitches, np.asarray(pairs, np.int64)])
         self.stitch_stiffness = np.concatenate([self.stitch_stiffness, stiffness])
+        self.stitch_stiffness0 = self.stitch_stiffness.copy()
         return self
 
     # ------------------------------------------------------------------ the scene
 
     def add_pins(self, entries, key="scene.pins"):
         """Pinned vertices and the moving pin groups (scene.pins entries)."""
-        pinned, motions = resolve_pin_entries(entries, len(self.mesh.positions),
-                                              self.mesh.grid_shape, key)
+        pinned, motions = resolve_pin_entries(entries, self.n_file, self.mesh.grid_shape, key)
+        pinned = np.unique(self.to_model(pinned))
+        motions = [type(m)(np.unique(self.to_model(m.vertices)), m.motion) for m in motions]
         self.pinned = np.union1d(self.pinned, pinned).astype(np.int64)
         self.pin_motions = self.pin_motions + motions
         return self
@@ -151,7 +183,12 @@ class ModelBuilder:
         from clothtool.sim.model.attach import check_attach
 
         self.attach = attach
-        self.attach_vertices = check_attach(attach, self.mesh, self.pinned, key)
+        if self.file_mesh is None:
+            self.attach_vertices = check_attach(attach, self.mesh, self.pinned, key)
+        else:
+            pinned = np.flatnonzero(np.isin(self.file_vertex, self.pinned))
+            self.attach_vertices = [np.unique(self.to_model(v)) for v in
+                                    check_attach(attach, self.file_mesh, pinned, key)]
         return self
 
     def welded(self, model, state):
@@ -163,6 +200,7 @@ class ModelBuilder:
         (mesh, origin, file_vertex, pinned, motions), state = weld(self, model, state)
         out = ModelBuilder()
         out.mesh, out.material, out.config = mesh, self.material, self.config
+        out.file_mesh, out.closed_seams = self.file_mesh, self.closed_seams
         out.dr, out.area = self.dr, self.area
         for attr in ("tri_stretch", "tri_shear", "tri_density", "tri_bend", "tri_damping"):
             setattr(out, attr, getattr(self, attr))
@@ -222,7 +260,7 @@ class ModelBuilder:
                                bend_model, plate, n, hinge, rest_angle, coef, weights,
                                membrane_model)
         if len(self.stitches):
-            terms.append(Stitch(self.stitches, self.stitch_stiffness))
+            terms.append(Stitch(self.stitches, self.stitch_stiffness.copy()))
         pattern = BlockPattern(n, *[t.elements for t in terms])
         constant = _bind(terms, pattern)
         damping_terms = damping_constant = None

@@ -39,7 +39,7 @@ METHODS = tuple(methods.METHODS)
 PRECONDITIONERS = ("jacobi", "multigrid")
 PBD_VARIANTS = ("gauss-seidel", "jacobi", "hierarchical")
 INTEGRATORS = ("bdf2", "euler")
-OUTPUT_FORMATS = ("ply", "obj", "mdd")
+OUTPUT_FORMATS = ("ply", "obj", "mdd", "usd")
 
 positive = number(minimum=0, exclusive=True)
 non_negative = number(minimum=0)
@@ -123,7 +123,9 @@ class Sewing(Section):
 class MeshSpec(Section):
     """Exactly one of ``grid``, ``ply`` and ``obj``. ``uv_scale``: metres per uv unit of a
     file's texture coordinates. ``seams``: boundary polylines of panels sewn together
-    (``sewing``), their two sides' rest lengths within ``seam_tolerance`` (relative)."""
+    (``sewing``), their two sides' rest lengths within ``seam_tolerance`` (relative).
+    ``weld_closed``: seams already closed in the file (boundary vertices of different panels
+    within ``weld_tolerance`` m of each other) are welded at the start."""
 
     grid: GridSpec | None = section(GridSpec, optional=True)
     ply: Path | None = setting(None, path)
@@ -132,6 +134,8 @@ class MeshSpec(Section):
     seams: tuple = setting((), seam_list)
     seam_tolerance: float = setting(0.02, non_negative)
     sewing: Sewing = section(Sewing)
+    weld_closed: bool = setting(True, flag)
+    weld_tolerance: float = setting(1.0e-4, positive)
 
     def finish(self, given, key):
         if sum(getattr(self, k) is not None for k in ("grid", "ply", "obj")) != 1:
@@ -516,16 +520,29 @@ class Time(Section):
     frames: int = setting(120, integer(minimum=0))
 
 
+def output_formats(value, key):
+    """``output.format``: names from OUTPUT_FORMATS; Alembic, which is not written, is
+    refused with the way to one."""
+    for i, item in enumerate([value] if isinstance(value, str) else value
+                             if isinstance(value, list) else []):
+        if isinstance(item, str) and item.lower() in ("abc", "alembic"):
+            raise InputError(f"{key}[{i}]: {item!r}: Alembic is not written; write 'usd' and "
+                             "convert it in Blender (import USD, export Alembic)")
+    return choices(OUTPUT_FORMATS)(value, key)
+
+
 @dataclass(frozen=True)
 class Output(Section):
     """Where and what a run writes: every ``every``-th frame, in each of ``format``: ``ply``
     (binary PLY frames with the rest uv as ``s t``), ``obj`` (OBJ frames in ``obj/`` with
     the pattern's uv per corner), ``mdd`` (one point cache of every written frame with its
-    time, ``cache/cloth.mdd``, and its base mesh ``cache/cloth.obj``)."""
+    time, ``cache/cloth.mdd``, and its base mesh ``cache/cloth.obj``), ``usd`` (one USD stage
+    ``usd/cloth.usda``: the cloth's points at every written frame, its uv, panels and the
+    colliders with their motion)."""
 
     dir: Path = setting(Path("out"), path)
     every: int = setting(1, integer(minimum=1))
-    format: tuple = setting(("ply",), choices(OUTPUT_FORMATS))
+    format: tuple = setting(("ply",), output_formats)
 
 
 @dataclass(frozen=True)

@@ -33,7 +33,7 @@ def add_config_seams(builder, mesh_spec, scene):
     """Check ``mesh.seams`` against the mesh and add its stitches to the builder."""
     if not mesh_spec.seams:
         return
-    mesh = builder.mesh
+    mesh = builder.mesh if builder.file_mesh is None else builder.file_mesh  # the file's vertices
     if mesh.corner_uv is None and mesh.uv is None:
         raise InputError(f"{mesh.path}: mesh.seams need the panels' rest pattern (texture "
                          "coordinates: OBJ vt, PLY face texcoord or s t)")
@@ -51,13 +51,21 @@ def add_config_seams(builder, mesh_spec, scene):
             raise InputError(f"{mesh.path}: {key}: a has {len(sides[0])} vertices and b "
                              f"{len(sides[1])}; a[i] is sewn to b[i]")
         a, b, length = check_seam(mesh, *sides, mesh_spec.seam_tolerance, key)
+        a, b = builder.to_model(a), builder.to_model(b)
+        if np.any(a == b):
+            i = int(np.argmax(a == b))
+            raise InputError(f"{mesh.path}: {key}: a[{i}] and b[{i}] are welded already (a seam "
+                             "closed in the file, mesh.weld_closed)")
         pairs.append(np.stack([a, b], axis=1))
         stiffness.append(mesh_spec.sewing.stiffness * length)
     builder.add_stitches(np.concatenate(pairs), np.concatenate(stiffness))
+    x = builder.mesh.positions
+    builder.stitch_gap0 = np.linalg.norm(x[builder.stitches[:, 0]] - x[builder.stitches[:, 1]],
+                                         axis=1)
     builder.sewing = mesh_spec.sewing
     builder.weld_distance = (mesh_spec.sewing.weld if mesh_spec.sewing.weld is not None
                              else WELD * scene.self_collision.thickness)
-    check_apart(mesh, builder.stitches)
+    check_apart(builder.mesh, "lay them out apart before sewing")
 
 
 def _line_groups(mesh):
@@ -196,8 +204,9 @@ def _rest_edge_length(mesh, tri, p, q):
     return float(np.sqrt(d @ d))
 
 
-def check_apart(mesh, pairs):
-    """InputError when two panels cross each other in the file (they must start apart)."""
+def check_apart(mesh, hint):
+    """InputError when two panels cross each other in the file (they must start apart),
+    naming the pair, then ``hint``."""
     from clothtool.contact.intersect import intersecting_pairs
     from clothtool.contact.broadphase import mesh_edges
 
@@ -208,7 +217,7 @@ def check_apart(mesh, pairs):
     edge, face = edges[crossing[0][0]], int(crossing[0][1])
     tri = int(np.flatnonzero(np.isin(mesh.faces, edge).sum(axis=1) == 2)[0])
     raise InputError(f"{mesh.path or 'mesh'}: the panels overlap at the start: triangle {tri} "
-                     f"crosses triangle {face}; lay them out apart before sewing")
+                     f"crosses triangle {face}; {hint}")
 
 
 def seam_gap(model, x):
@@ -223,6 +232,33 @@ def sewn(model, x, builder):
     return model.stitches is not None and seam_gap(model, x) <= builder.weld_distance
 
 
+LAG, CLOSE = 0.1, 0.5  # the goal gap: held for LAG × sewing.time, then closed in CLOSE × it
+RAISE, MOST = 2.0, 2.0 ** 24  # a pair behind its goal: its stiffness × RAISE, up to MOST × its own
+
+
+def goal_gaps(builder, t):
+    """(S,) the gap each stitch pair should be within at time t: its gap at the start, held
+    for LAG × ``sewing.time`` and then closing at a constant rate to 0 at (LAG + CLOSE) ×
+    ``sewing.time`` (never below the weld distance)."""
+    T = builder.sewing.time
+    left = np.clip(1.0 - (t - LAG * T) / (CLOSE * T), 0.0, 1.0)
+    return np.maximum(builder.stitch_gap0 * left, builder.weld_distance)
+
+
+def tighten(model, x, t, builder):
+    """Raise the stiffness of the stitch pairs behind their goal gap (:func:`goal_gaps`) by
+    RAISE (up to MOST × their own): a seam closes on schedule whatever the panels' stiffness,
+    unless contact holds it open. The builder's largest stiffness N/m per metre of seam after
+    the raise, or None when none was behind."""
+    behind = model.stitches.gaps(x) > goal_gaps(builder, t)
+    k, k0 = builder.stitch_stiffness, builder.stitch_stiffness0
+    behind &= k < MOST * k0
+    if not behind.any():
+        return None
+    k[behind] = np.minimum(k[behind] * RAISE, MOST * k0[behind])
+    return float((k / k0).max()) * builder.sewing.stiffness
+
+
 def check_sewing(model, x, t, builder, frame):
     """NumericalError when the sewing has run ``mesh.sewing.time`` without closing."""
     if model.stitches is None or t < builder.sewing.time:
@@ -233,7 +269,23 @@ def check_sewing(model, x, t, builder, frame):
     raise NumericalError(f"simulation failed at frame {frame}: mesh.seams did not close in "
                          f"mesh.sewing.time ({builder.sewing.time:g} s): vertices {int(a)} and "
                          f"{int(b)} are {gaps[s]:.3g} m apart (mesh.sewing.weld "
-                         f"{builder.weld_distance:g} m); raise mesh.sewing.stiffness or time")
+                         f"{builder.weld_distance:g} m) with the stitch stiffness raised to "
+                         f"{stitch_level(builder):.3g} N/m per metre of seam (unless contact holds "
+                         "them apart, a longer mesh.sewing.time closes them)")
+
+
+def sewing_gap_text(model, x):
+    """'vertices a and b are d mm apart' of the farthest stitch pair."""
+    gaps = model.stitches.gaps(x)
+    s = int(np.argmax(gaps))
+    a, b = model.stitches.elements[s]
+    return f"vertices {int(a)} and {int(b)} are {1e3 * gaps[s]:.3g} mm apart"
+
+
+def stitch_level(builder):
+    """The largest stitch stiffness now, in N/m per metre of seam."""
+    return float((builder.stitch_stiffness / builder.stitch_stiffness0).max()) \
+        * builder.sewing.stiffness
 
 
 def weld(builder, model, state):
@@ -273,3 +325,79 @@ def _find(root, v):
         root[v] = root[root[v]]
         v = root[v]
     return v
+
+
+def weld_closed_seams(mesh, tolerance):
+    """(mesh, file_vertex, found) of a garment whose seams are already closed in the file (each
+    panel with its own vertices along a seam, at the same positions, as pattern software
+    exports a sewn garment): boundary vertices of different panels (connected pieces of the
+    mesh) within ``tolerance`` m of each other are welded into one vertex at their mean
+    position; each triangle keeps its own corners' rest shape. ``file_vertex`` (N_file,) is
+    the welded vertex of each vertex of the file, ``found`` a list of (panel, panel, vertices,
+    length m) per pair of panels welded. Nothing to weld: (mesh, None, [])."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+    from scipy.spatial import cKDTree
+
+    n = len(mesh.positions)
+    edges = boundary_edges(mesh.faces)
+    rim = np.unique(np.array(list(edges), np.int64).reshape(-1, 2))
+    if len(rim) < 2:
+        return mesh, None, []
+    close = cKDTree(mesh.positions[rim]).query_pairs(tolerance, output_type="ndarray")
+    if len(close) == 0:
+        return mesh, None, []
+    f = mesh.faces
+    graph = coo_matrix((np.ones(3 * len(f)), (f.ravel(), np.roll(f, 1, axis=1).ravel())),
+                       shape=(n, n))
+    _, panel = connected_components(graph, directed=False)
+    pairs = rim[close]
+    same = np.flatnonzero(panel[pairs[:, 0]] == panel[pairs[:, 1]])
+    if len(same):
+        i, j = (int(v) for v in pairs[same[0]])
+        d = float(np.linalg.norm(mesh.positions[i] - mesh.positions[j]))
+        raise InputError(f"mesh.weld_tolerance: {tolerance:g} m would weld vertices {i} and {j} "
+                         f"of one panel ({_panel_name(mesh, panel, panel[i])}), {d:.3g} m apart; "
+                         "lower it, or set mesh.weld_closed: false")
+    root = np.arange(n)
+    for a, b in pairs:
+        ra, rb = _find(root, a), _find(root, b)
+        root[max(ra, rb)] = min(ra, rb)
+    root = np.array([_find(root, v) for v in range(n)])
+    keep, new = np.unique(root, return_inverse=True)
+    count = np.bincount(new, minlength=len(keep)).astype(np.float64)[:, None]
+    x = np.zeros((len(keep), 3))
+    np.add.at(x, new, mesh.positions)
+    x /= count
+    corner = mesh.corner_uv if mesh.corner_uv is not None else (
+        mesh.uv[f] if mesh.uv is not None else None)
+    rest = x.copy() if corner is not None else None
+    if rest is None:  # a mesh resting in its own shape: the welded vertices' mean rest position
+        rest = np.zeros((len(keep), 3))
+        np.add.at(rest, new, mesh.rest3d)
+        rest /= count
+    welded = RestMesh(x, new[f], None, None, rest, corner, mesh.groups, mesh.path)
+    members = {}  # each weld's panels
+    for v in np.flatnonzero(root != np.arange(n)):
+        members.setdefault(int(root[v]), set()).update((int(panel[v]), int(panel[root[v]])))
+    seams = {}  # (panel, other panel): [vertices of the first, length of its welded edges m]
+    for v, r in enumerate(root):
+        for q in members.get(int(r), ()):
+            if q != panel[v]:
+                seams.setdefault((int(panel[v]), q), [0, 0.0])[0] += 1
+    for i, j in edges:
+        for q in members.get(int(root[i]), set()) & members.get(int(root[j]), set()):
+            if q != panel[i]:
+                seams[(int(panel[i]), q)][1] += float(np.linalg.norm(mesh.positions[j]
+                                                                     - mesh.positions[i]))
+    found = [(_panel_name(mesh, panel, p), _panel_name(mesh, panel, q), count, length)
+             for (p, q), (count, length) in sorted(seams.items()) if p < q]
+    return welded, new, found
+
+
+def _panel_name(mesh, panel, p):
+    """An OBJ group holding panel p's triangles (the smallest), or 'panel p'."""
+    tri = np.flatnonzero(panel[mesh.faces[:, 0]] == p)
+    names = [(len(t), name) for name, t in (mesh.groups or {}).items()
+             if len(t) and np.isin(tri, t).all()]
+    return min(names)[1] if names else f"panel {p}"
