@@ -25,7 +25,12 @@ above ε_v and a stiff viscous hold below it: a sheet on an incline creeps at mo
 
 positive semi-definite as it stands (IPC's f1 is built for that), and 2μλ/(ĥε_v) T Tᵀ at
 v = 0. λ, T, w and c are lagged: the Newton loop re-lags them at its solution until the
-friction force they give stops changing (:mod:`clothtool.sim.solve.contact`).
+friction force they give stops changing (:mod:`clothtool.sim.solve.contact`). A sliding
+pair's zero curvature along v̂ lets Newton's steps overshoot across the stick–slip threshold
+and back; where a pair's slip has reversed against its reference (its slip when lagged),
+Newton's matrix takes instead the curvature μλ/(ĥ‖v‖) T Tᵀ of the half-quadratic bound
+‖v‖ ≤ ‖v‖²/(2v₀) + v₀/2 at v₀ = ‖v‖ (the potential itself is unchanged), which makes the
+step shorter there.
 """
 
 import numpy as np
@@ -226,9 +231,9 @@ def bound_reversed_slips(x, base, h_eff, eps_v, rows, weights, bases, mu_lambda,
                          reference, blocks):
     """Where a pair slides (‖v‖ ≥ ε_v) against its reference slip (v·v_ref < 0: it reversed
     within the step), its Hessian block becomes (μλ/(ĥ‖v‖)) T Tᵀ, the curvature of the
-    half-quadratic bound ‖v‖ ≤ ‖v‖²/(2v₀) + v₀/2 at v₀ = ‖v‖ (Larionov et al. 2022), in
-    place of the zero curvature along v̂ that lets Newton overshoot back and forth across
-    the stick–slip threshold. Returns the number of pairs bounded."""
+    half-quadratic bound ‖v‖ ≤ ‖v‖²/(2v₀) + v₀/2 at v₀ = ‖v‖, in place of the zero
+    curvature along v̂ that lets Newton overshoot back and forth across the stick–slip
+    threshold. Returns the number of pairs bounded."""
     inv_h = 1.0 / h_eff
     bounded = 0
     for k in range(count):

@@ -28,11 +28,13 @@ minimisation: its pairs, normal forces and tangent bases are lagged from the sta
 the step and re-lagged at Newton's solution until the friction force they give changes
 the velocities by less than ``solver.newton_tolerance``.
 
-Candidate pairs are found for a reference configuration and a reach ρ_v per vertex
-(the larger of DELTA and 1.5 times the motion expected of the vertex in the step: h v,
-or its pin's or collider's own) and kept while every vertex stays within its reach, so
-the broad phase runs about once per step, or less in slow motion, and moving parts get
-a wide reach without widening it elsewhere.
+Candidate pairs are found for a reference configuration, the midpoint of the motion
+expected of each vertex in the step (h v, or its pin's or collider's own), and a reach ρ_v
+per vertex (the larger of DELTA and ½ + SLACK times that motion), and kept while every
+vertex stays within its reach, so the broad phase runs about once per step, or less in
+slow motion, and moving parts get a wide reach without widening it elsewhere. Where
+friction pairs slide against the direction they slid in when lagged, Newton's matrix takes
+the half-quadratic bound of the friction (:func:`~clothtool.contact.friction.bound_reversed_slips`).
 """
 
 import numpy as np
