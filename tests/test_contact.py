@@ -472,3 +472,36 @@ def test_broad_phase_finds_every_cloth_vertex_near_a_moving_plane():
         want |= set(np.flatnonzero((y[:n_cloth] - y[n_cloth]) @ normal < r))
     assert want <= got and len(want) > 10
     assert len(got) < n_cloth  # vertices far above the plane are left out
+
+
+def test_candidates_of_a_reference_motion_hold_every_pair_of_the_motions_within_its_reach():
+    """The Newton loop keeps one candidate set per reference motion x → x + m: the pairs near
+    its midpoint x + m/2 for vertices within ρ_v = max(DELTA, (½ + SLACK)‖m_v‖) of it, kept
+    for every later motion y → y + dy whose end points stay within ρ_v (``_within``): along
+    such a motion (the reference motion itself among them) every pair within reach, found
+    by brute force, is in the kept set; an end point outside makes ``_within`` refuse."""
+    from clothtool.sim.solve.contact import DELTA, SLACK, _radii, _within
+    x, faces = rolled_sheet(n=10, gap=(0.01, 0.03))
+    edges = mesh_edges(faces)
+    obstacle = np.zeros(len(x), bool)
+    rng = np.random.default_rng(4)
+    r = 0.012
+    m = 0.004 * rng.normal(size=x.shape) + np.array([0.01, 0.0, 0.0])  # spread and a drift
+    ref, rho = x + 0.5 * m, _radii(m, DELTA, 0.5 + SLACK)
+    kept = {tuple(s) for s in contact_stencils(ref, np.zeros_like(x), rho, faces, edges, obstacle,
+                                              True, r)}
+    assert _within(x, m, ref, rho)
+
+    def within_reach():  # points closer than ρ_v to the midpoint
+        d = rng.normal(size=x.shape)
+        d *= (0.99 * rho * rng.uniform(size=len(x)) / np.linalg.norm(d, axis=1))[:, None]
+        return ref + d
+
+    motions = [(x, m)] + [(y, within_reach() - y) for y in (within_reach() for _ in range(20))]
+    for y, dy in motions:
+        assert _within(y, dy, ref, rho)
+        for t in np.linspace(0.0, 1.0, 3):
+            assert brute_force_pairs(y + t * dy, faces, edges, obstacle, True, r) <= kept
+    y = ref.copy()
+    y[7] += 1.01 * rho[7] * np.array([0.0, 0.0, 1.0])
+    assert not _within(y, np.zeros_like(y), ref, rho)

@@ -16,7 +16,8 @@ from hypothesis import strategies as st
 
 from clothtool.contact.barrier import (EDGE_EDGE, POINT_PLANE, POINT_TRIANGLE, contact_assemble,
                                        pair_geometry)
-from clothtool.contact.friction import (f0, f1, friction_assemble, friction_energy, friction_lag,
+from clothtool.contact.friction import (bound_reversed_slips, f0, f1, friction_assemble,
+                                        friction_energy, friction_lag, reference_slips,
                                         tangent_basis)
 
 
@@ -379,3 +380,43 @@ def test_friction_lag_picks_the_pair_coefficient_and_skips_frictionless_pairs():
     assert count == 1 and lag[3][0] == pytest.approx(0.25 * force) and not lag[4].any()
     assert lag_one(x, st_, cloth, np.zeros(4), mu_self=0.0)[1] == 0
     assert lag_one(x, st_, np.array([False, False, True, True]), np.zeros(4), mu=0.0)[1] == 0
+
+
+# ---------------------------------------------------------------- reversed slips, curvature
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_reversed_slips_get_the_half_quadratic_bound_and_the_rest_keep_their_blocks(seed):
+    """reference_slips gives each pair's slip at the velocities u; bound_reversed_slips replaces
+    the block of each sliding pair whose slip points against its reference by
+    (μλ/(ĥ‖v‖)) T Tᵀ — PSD, at least the exact block, equal to it across v̂ — and leaves the
+    others (sticking, or sliding along their reference) as friction_assemble wrote them."""
+    rng = np.random.default_rng(seed)
+    n, n_held, count, eps_v, h_eff = 8, 3, 12, 1e-2, 1.0 / 90.0
+    x = rng.normal(size=(n + n_held, 3))
+    base = x - h_eff * rng.normal(size=x.shape)
+    lag = random_lag(rng, n, n_held, count, eps_v, h_eff, "mixed", x, base)
+    rows, weights, bases, mu_lambda, c = lag
+    u = (x[:n] - base[:n]) / h_eff
+    ref = reference_slips(u, rows, weights, bases, c, count, n)
+    for k in range(count):
+        np.testing.assert_allclose(ref[k], slip(x, base, h_eff, lag, k), rtol=1e-10, atol=1e-12)
+    ref[::3] *= -1.0  # every third pair slid the other way when it was lagged
+    blocks = np.zeros((count, 3, 3))
+    friction_assemble(x, base, h_eff, eps_v, *lag, count, n, np.zeros((len(x), 3)), blocks)
+    bounded = blocks.copy()
+    got = bound_reversed_slips(x, base, h_eff, eps_v, *lag, count, n, ref, bounded)
+    want = 0
+    for k in range(count):
+        v = slip(x, base, h_eff, lag, k)
+        speed = np.linalg.norm(v)
+        if k % 3 == 0 and speed >= eps_v:
+            want += 1
+            tt = bases[k] @ bases[k].T
+            np.testing.assert_allclose(bounded[k], mu_lambda[k] / (h_eff * speed) * tt, rtol=1e-12)
+            assert np.linalg.eigvalsh(bounded[k] - blocks[k]).min() >= -1e-9 * np.abs(bounded[k]).max()
+            across = bases[k] @ np.array([-v[1], v[0]]) / speed
+            assert across @ bounded[k] @ across == pytest.approx(across @ blocks[k] @ across, rel=1e-10)
+        else:
+            np.testing.assert_array_equal(bounded[k], blocks[k])
+    assert got == want > 0

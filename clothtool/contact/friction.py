@@ -25,7 +25,12 @@ above ε_v and a stiff viscous hold below it: a sheet on an incline creeps at mo
 
 positive semi-definite as it stands (IPC's f1 is built for that), and 2μλ/(ĥε_v) T Tᵀ at
 v = 0. λ, T, w and c are lagged: the Newton loop re-lags them at its solution until the
-friction force they give stops changing (:mod:`clothtool.sim.solve.contact`).
+friction force they give stops changing (:mod:`clothtool.sim.solve.contact`). A sliding
+pair's zero curvature along v̂ lets Newton's steps overshoot across the stick–slip threshold
+and back; where a pair's slip has reversed against its reference (its slip when lagged),
+Newton's matrix takes instead the curvature μλ/(ĥ‖v‖) T Tᵀ of the half-quadratic bound
+‖v‖ ≤ ‖v‖²/(2v₀) + v₀/2 at v₀ = ‖v‖ (the potential itself is unchanged), which makes the
+step shorter there.
 """
 
 import numpy as np
@@ -202,3 +207,44 @@ def friction_lag(y, stencils, active, n_active, weights, normals, force, obstacl
         mu_lambda[count] = m * force[a]
         count += 1
     return count
+
+
+@njit(cache=True)
+def reference_slips(u, rows, weights, bases, c, count, n):
+    """(count, 2) the slip T_kᵀ(Σ_j w_kj u_j + c_k) of each lagged pair at the cloth
+    velocities u (N, 3): the direction each pair slid in when it was lagged."""
+    out = np.zeros((count, 2))
+    for k in range(count):
+        r = c[k].copy()
+        for j in range(4):
+            v = rows[k, j]
+            if v < n and weights[k, j] != 0.0:
+                for i in range(3):
+                    r[i] += weights[k, j] * u[v, i]
+        for a in range(2):
+            out[k, a] = bases[k, 0, a] * r[0] + bases[k, 1, a] * r[1] + bases[k, 2, a] * r[2]
+    return out
+
+
+@njit(cache=True)
+def bound_reversed_slips(x, base, h_eff, eps_v, rows, weights, bases, mu_lambda, c, count, n,
+                         reference, blocks):
+    """Where a pair slides (‖v‖ ≥ ε_v) against its reference slip (v·v_ref < 0: it reversed
+    within the step), its Hessian block becomes (μλ/(ĥ‖v‖)) T Tᵀ, the curvature of the
+    half-quadratic bound ‖v‖ ≤ ‖v‖²/(2v₀) + v₀/2 at v₀ = ‖v‖, in place of the zero
+    curvature along v̂ that lets Newton overshoot back and forth across the stick–slip
+    threshold. Returns the number of pairs bounded."""
+    inv_h = 1.0 / h_eff
+    bounded = 0
+    for k in range(count):
+        a, b = _slip(x, base, inv_h, rows[k], weights[k], bases[k], c[k], n)
+        v = np.sqrt(a * a + b * b)
+        if v < eps_v or a * reference[k, 0] + b * reference[k, 1] >= 0.0:
+            continue
+        scale = mu_lambda[k] * inv_h / v
+        basis = bases[k]
+        for p in range(3):
+            for q in range(3):
+                blocks[k, p, q] = scale * (basis[p, 0] * basis[q, 0] + basis[p, 1] * basis[q, 1])
+        bounded += 1
+    return bounded

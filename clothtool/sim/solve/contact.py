@@ -28,11 +28,13 @@ minimisation: its pairs, normal forces and tangent bases are lagged from the sta
 the step and re-lagged at Newton's solution until the friction force they give changes
 the velocities by less than ``solver.newton_tolerance``.
 
-Candidate pairs are found for a reference configuration and a reach ρ_v per vertex
-(the larger of DELTA and 1.5 times the motion expected of the vertex in the step: h v,
-or its pin's or collider's own) and kept while every vertex stays within its reach, so
-the broad phase runs about once per step, or less in slow motion, and moving parts get
-a wide reach without widening it elsewhere.
+Candidate pairs are found for a reference configuration, the midpoint of the motion
+expected of each vertex in the step (h v, or its pin's or collider's own), and a reach ρ_v
+per vertex (the larger of DELTA and ½ + SLACK times that motion), and kept while every
+vertex stays within its reach, so the broad phase runs about once per step, or less in
+slow motion, and moving parts get a wide reach without widening it elsewhere. Where
+friction pairs slide against the direction they slid in when lagged, Newton's matrix takes
+the half-quadratic bound of the friction (:func:`~clothtool.contact.friction.bound_reversed_slips`).
 """
 
 import numpy as np
@@ -42,13 +44,16 @@ from clothtool.contact.barrier import (POINT_PLANE, barrier_blocks, contact_asse
                                        contact_energy, pair_distance, pair_thickness)
 from clothtool.contact.broadphase import contact_stencils
 from clothtool.contact.ccd import collision_free_step, near_pairs
-from clothtool.contact.friction import friction_assemble, friction_energy, friction_lag
+from clothtool.contact.friction import (bound_reversed_slips, friction_assemble, friction_energy,
+                                       friction_lag, reference_slips)
 from clothtool.contact.intersect import intersecting_pairs
 from clothtool.errors import InputError, NumericalError
 from clothtool.sim.linalg.pairs import pair_operator, pairs_add_diagonal, pairs_coupling
 
 KAPPA = 1.0  # barrier stiffness in units of max(m̄/h², k) per d̂²
 DELTA = 2.0e-3  # m: smallest reach of a candidate set beyond its reference positions
+SLACK = 0.5  # reach of a candidate set beyond its motion's midpoint, per length of the motion
+FAST = 1.0e-2  # m: mean motion beyond which each motion gets its own swept candidates
 
 
 @njit(cache=True)
@@ -146,18 +151,19 @@ class BarrierContact:
     def _ensure(self, y, dy):
         """Make the candidates hold every pair within reach on y → y + dy. They are the
         pairs near a reference configuration for vertices within ρ_v of it, and are kept
-        while the motions stay so; else ref ← y, ρ_v = max(DELTA, 1.5 ‖dy_v‖) — or, when
-        the vertices move more than 2·DELTA on average, the pairs of this motion's swept
-        boxes (for its line search and the assembly after it)."""
+        while the motions stay so; else ref ← y + dy/2 (the motion's midpoint),
+        ρ_v = max(DELTA, (½ + SLACK)‖dy_v‖) — or, when the vertices move more than FAST on
+        average, the pairs of this motion's swept boxes (for its line search and the
+        assembly after it)."""
         if self._ref is not None and _within(y, dy, self._ref, self._rho):
             return
-        if _mean_norm(dy) > 2.0 * DELTA:  # the whole scene moves fast: this motion's pairs
+        if _mean_norm(dy) > FAST:  # the whole scene moves fast: this motion's pairs
             self._ref = None
             self.stencils = self._stencils(y, dy, np.zeros(len(y)))
         else:
-            self._ref = y.copy()
-            self._rho = _radii(dy, DELTA, 1.5)
-            self.stencils = self._stencils(y, np.zeros_like(y), self._rho)
+            self._ref = y + 0.5 * dy
+            self._rho = _radii(dy, DELTA, 0.5 + SLACK)
+            self.stencils = self._stencils(self._ref, np.zeros_like(y), self._rho)
         k = len(self.stencils)
         if len(self.active) < k:
             self.active = np.zeros(k, np.int64)
@@ -291,10 +297,11 @@ class BarrierContact:
         if self.friction:
             self.base, self.h_eff = base, h_eff
             self._live_motion = False
-            self._lag(self.y, held=True)
+            self._lag(self.y, v, held=True)
 
-    def _lag(self, y, held=False):
-        """Lag the friction pairs at the positions y (cloth and colliders)."""
+    def _lag(self, y, u, held=False):
+        """Lag the friction pairs at the positions y (cloth and colliders), with the cloth
+        velocities u for their reference slips."""
         sc = self.scene
         _, n_act, _ = self._assemble(y, held)
         if len(self.lag[0]) < n_act:
@@ -302,6 +309,8 @@ class BarrierContact:
         self.n_lag = friction_lag(y, self.assembled, self.active, n_act, self.weights,
                                   self.normals, self.force, sc.obstacle, sc.mu, sc.mu_self,
                                   self.velocity, self.field, self.rigid, sc.n_cloth, *self.lag)
+        rows, w, bases, _, c = self.lag
+        self.reference = reference_slips(u, rows, w, bases, c, self.n_lag, sc.n_cloth)
 
     def _friction_gradient(self, x):
         """∇D (N, 3) of the lagged pairs at cloth positions x."""
@@ -321,7 +330,7 @@ class BarrierContact:
         n = self.scene.n_cloth
         before = self._friction_gradient(x)
         self.y[:n] = x
-        self._lag(self.y)
+        self._lag(self.y, (x - self.base[:n]) / self.h_eff)
         change = self._friction_gradient(x) - before
         return float(np.max(np.sqrt(np.sum(change * change, axis=1)) * self.h_eff
                             * self.inv_mass[:n]))
@@ -349,6 +358,8 @@ class BarrierContact:
             self._w[n_act:size] = w[:self.n_lag]
             energy += friction_assemble(x, self.base, self.h_eff, self.eps_v, rows, w, bases,
                                         mu_lambda, c, self.n_lag, n, grad, self._blocks[n_act:size])
+            bound_reversed_slips(x, self.base, self.h_eff, self.eps_v, rows, w, bases, mu_lambda,
+                                 c, self.n_lag, n, self.reference, self._blocks[n_act:size])
         self.operator = pair_operator(self._rows, self._w, self._blocks, size, n)
         pairs_add_diagonal(self.operator, matrix.pattern.diag, matrix.values)
         return energy
