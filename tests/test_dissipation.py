@@ -110,7 +110,7 @@ def test_the_mesh_kernels_sum_the_elements():
     x = base + rng.normal(0, 0.02, base.shape)
     term = StretchDissipation(model.faces, model.dr_inv, model.area, model.stretch_damping,
                               model.tri_slots)
-    term.begin(base, None, 0.01)
+    term.begin(((1.0, base),), 0.01)
     np.testing.assert_allclose(model.stretch_damping, 0.02 * np.array([[800.0, 500.0]]).repeat(
         len(model.faces), axis=0))
     matrix = BlockMatrix(model.pattern)

@@ -113,17 +113,17 @@ class StretchDissipation:
         self.coef = np.zeros_like(self.damping)
         self.length = np.zeros_like(self.damping)
 
-    def begin(self, x_n, x_prev, h_eff):
-        """The step's ĥ and fibre lengths L_b: L(x_n) for backward Euler (x_prev None), the
-        BDF2 combination (4L(x_n) − L(x_{n−1}))/3 of the strains (not the strain of the
-        extrapolated positions, which a large step makes no shape of the cloth's), ≥ 0."""
+    def begin(self, past, h_eff):
+        """The step's ĥ and fibre lengths L_b = Σ w_i L(x_i) over the (w_i, x_i) of ``past``,
+        ≥ 0: L(x_n) for backward Euler, BDF2's (4L(x_n) − L(x_{n−1}))/3 (a combination of
+        the strains, not the strain of the extrapolated positions, which a large step makes
+        no shape of the cloth's), SDIRK2's second stage's likewise."""
         np.multiply(self.damping, 1.0 / h_eff, out=self.coef)
-        column_lengths(x_n, self.faces, self.dr_inv, self.length)
-        if x_prev is not None:
-            self.length *= 4.0 / 3.0
-            self.length -= column_lengths(x_prev, self.faces, self.dr_inv,
-                                          np.empty_like(self.length)) / 3.0
-            np.maximum(self.length, 0.0, out=self.length)
+        self.length[:] = 0.0
+        scratch = np.empty_like(self.length)
+        for weight, x in past:
+            self.length += weight * column_lengths(x, self.faces, self.dr_inv, scratch)
+        np.maximum(self.length, 0.0, out=self.length)
 
     def energy(self, x):
         return dissipation_energy(x, self.faces, self.dr_inv, self.area, self.coef, self.length)
