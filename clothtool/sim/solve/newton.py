@@ -65,7 +65,7 @@ from clothtool.contact.projection import resolve_collisions
 from clothtool.sim.solve.contact import BarrierContact
 from clothtool.sim.solve.potential import (Contact, Dissipation, Elastic, Inertia, MovingPins,
                                            RayleighDamping, Stage)
-from clothtool.sim.energies.dissipation import StretchDissipation
+from clothtool.sim.energies.dissipation import StrainDissipation
 from clothtool.sim.energies.energy import FemElastic
 from clothtool.sim.linalg.filter import apply_filter
 from clothtool.sim.solve.integrator import Integrator, StepReport
@@ -129,16 +129,15 @@ class NewtonIntegrator(Integrator):
         gravity, damping (frozen Rayleigh, per-panel, dissipation potentials), moving pins,
         barrier contact and friction."""
         terms = [Elastic(self.elastic), Inertia(model.mass, model.gravity)]
-        if model.damping > 0:
-            # per-panel damping (materials): the terms with their stiffness × β_e
+        if model.damping > 0 and model.strain_damping is None:
+            # frozen βK(x_n); per-panel damping (materials): the terms with stiffness × β_e
             panel = (FemElastic(model, model.damping_terms, model.damping_constant)
                      if model.damping_terms is not None else None)
             terms.insert(1, RayleighDamping(self.elastic, BlockMatrix(pattern), model.damping,
                                             panel))
-        if model.stretch_damping is not None:
-            # damping_model: strain: the dissipation potential Φ of the fibres' length change
-            terms.append(Dissipation(StretchDissipation(model.faces, model.dr_inv, model.area,
-                                                        model.stretch_damping, model.tri_slots)))
+        if model.strain_damping is not None:
+            # damping_model: strain: the dissipation potential of the strains' change
+            terms.append(Dissipation(StrainDissipation(model)))
         if len(model.moving_pinned):
             terms.append(MovingPins())
         if model.contact is not None:  # mesh colliders and self-collision
