@@ -165,14 +165,15 @@ def test_explicit_forces_are_the_gradient_plus_damping_times_the_hessian(bend_mo
 
 
 @pytest.mark.parametrize("integrator", ["euler", "bdf2"])
-@pytest.mark.parametrize("method", ["implicit", "mass-spring"])
+@pytest.mark.parametrize("method, damping_model", [("implicit", "strain"), ("implicit", "frozen"),
+                                                   ("mass-spring", "frozen")])
 def test_a_converged_newton_step_is_a_stationary_point_of_the_incremental_potential(
-        method, integrator):
+        method, damping_model, integrator):
     """The gradient the loop builds (inertia, gravity, elasticity, damping) is the
     derivative of the potential it line-searches: a converged step zeroes it."""
     cfg = load_config({"mesh": {"grid": {"nx": 5, "ny": 5, "plane": "xz"}},
                        "material": {"stretch": 300.0, "shear": 40.0, "bend": 1e-2,
-                                    "damping": 0.02},
+                                    "damping": 0.02, "damping_model": damping_model},
                        "scene": {"pins": ["top_corners"]},
                        "solver": {"method": method, "integrator": integrator,
                                   "newton_iterations": 40, "newton_tolerance": 1e-12,
@@ -198,10 +199,11 @@ def test_a_converged_newton_step_is_a_stationary_point_of_the_incremental_potent
 
 
 def test_the_line_search_potential_is_the_incremental_potential():
-    """The line search evaluates E along the Newton direction with the damping term in
-    closed form; it must be the same E."""
+    """The line search evaluates E along the Newton direction with the frozen damping term
+    in closed form; it must be the same E."""
     cfg = load_config({"mesh": {"grid": {"nx": 5, "ny": 5, "plane": "xz"}},
-                       "material": {"damping": 0.05}, "scene": {"pins": ["top_corners"]}})
+                       "material": {"damping": 0.05, "damping_model": "frozen"},
+                       "scene": {"pins": ["top_corners"]}})
     model = build_model(cfg)
     integ = make_integrator(model, cfg.solver, cfg.step)
     state = model.initial_state()
