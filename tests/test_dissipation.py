@@ -228,7 +228,7 @@ def test_a_crumpled_sheet_relaxes_by_frame_8_at_one_step_per_frame(substeps):
     """A 16×16 sheet released from random displacements of up to 0.6 cell (folded and
     inverted triangles, fibres stretched up to 2.7×), with the default damping (``strain``:
     stretch, shear and bending): the largest principal stretch is at most 1.1 by frame 8,
-    at one step per frame (1.08) as at 16 (with the damping frozen at the start of the
+    at one step per frame (1.066) as at 16 (with the damping frozen at the start of the
     step, 1.29 at one step per frame)."""
     def crumple(model, state):
         state.x += np.random.default_rng(0).uniform(-0.6, 0.6, state.x.shape) / 15
