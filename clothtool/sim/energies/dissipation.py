@@ -22,11 +22,7 @@ BDF2; a combination of the strains, not the strain of the combined positions, wh
 large step makes no shape of the cloth's), likewise S and Θ. To first order each part is
 the frozen form with the matching part of K: its Gauss–Newton Hessian. Stretch: gradient
 per column (A βk/ĥ)(‖f‖ − L) f̂ through ∂f/∂x, Hessian (A βk/ĥ)[f̂f̂ᵀ + c(I − f̂f̂ᵀ)],
-c = 1 − L/‖f‖, taken with |c| (PSD; the absolute-value eigenvalue filter of Chen, Diaz &
-Yuksel 2024, "Trust-region eigenvalue filtering for projected Newton": clamped at 0, a
-fibre shorter than its base left the compressed, nearly unstiffened modes to the mass
-term, and stiff cloth at h = 1 s took Newton steps along them that the line search cut
-to 1/16, at 1e7 N/m ending 1.062 stretched after 20 Newton steps, 1.035 with |c|). Shear: gradient (A βk_h/ĥ)(s − S)(f1, f0),
+c = 1 − L/‖f‖, taken with c clamped at 0 (PSD). Shear: gradient (A βk_h/ĥ)(s − S)(f1, f0),
 Hessian (A βk_h/ĥ)[(f1, f0)(f1, f0)ᵀ + (s − S)H₆], taken without the H₆ part (PSD).
 Bending: the dihedral kernels with c → βc/ĥ and θ̄ → Θ (Gauss–Newton Hessian).
 """
@@ -57,8 +53,8 @@ def strain_measures(x, faces, dr_inv, out):
 @njit(cache=True)
 def dissipation_element(x0, x1, x2, dr_inv, area, coef, base, exact, grad, hess):
     """Φ of one triangle, coef = (βk_u/ĥ, βk_v/ĥ, βk_h/ĥ), base = (L_0, L_1, S); writes its
-    gradient (9,) and Hessian (9, 9) (vertex-major): exact with ``exact``, else with |c|
-    and without the shear's H₆ part."""
+    gradient (9,) and Hessian (9, 9) (vertex-major): exact with ``exact``, else with c
+    clamped at 0 and without the shear's H₆ part."""
     f0, f1 = deformation_gradient(x0, x1, x2, dr_inv)
     a, b, c, d = dr_inv[0, 0], dr_inv[0, 1], dr_inv[1, 0], dr_inv[1, 1]
     weights = ((-a - c, a, c), (-b - d, b, d))  # f0 = Σ α_v x_v, f1 = Σ β_v x_v
@@ -73,7 +69,7 @@ def dissipation_element(x0, x1, x2, dr_inv, area, coef, base, exact, grad, hess)
         energy += 0.5 * k * gap * gap
         across = k * (1.0 - base[col] / n)
         if not exact and across < 0.0:
-            across = -across
+            across = 0.0
         w = weights[col]
         for v in range(3):
             for p in range(3):
