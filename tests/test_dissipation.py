@@ -1,5 +1,6 @@
-"""The stretch dissipation potential Φ (clothtool.sim.energies.dissipation): finite-difference checks
-of its gradient and Hessian, its known values, and the crumpled start it was built for."""
+"""The strain dissipation potential Φ (clothtool.sim.energies.dissipation): finite-difference checks
+of its gradient and Hessian (stretch, shear, bending), its known values, zero for rigid
+motions, and the crumpled start it was built for."""
 
 import numpy as np
 import pytest
@@ -9,15 +10,17 @@ from hypothesis import strategies as st
 from clothtool.errors import InputError
 from clothtool.sim.model.builder import build_model
 from clothtool.sim.model.config import load_config
-from clothtool.sim.energies.dissipation import (StretchDissipation, column_lengths, dissipation_element,
-                                       dissipation_energy)
+from clothtool.sim.energies.dissipation import (StrainDissipation, dissipation_element,
+                                                dissipation_energy, strain_measures)
+from clothtool.geometry import dihedral_angles
+from clothtool.sim.energies.bending import dihedral_element, dihedral_total_energy
 from clothtool.sim.linalg.blocks import BlockMatrix
 from clothtool.sim.energies.membrane import max_principal_stretch
 from clothtool.sim.solvers.compare import run_in_memory
 
 DR_INV = np.linalg.inv(np.array([[0.1, 0.03], [0.0, 0.08]]))  # a rest triangle, uv edges
 AREA = 0.5 * 0.1 * 0.08
-COEF = np.array([300.0, 120.0])
+COEF = np.array([300.0, 120.0, 40.0])
 STEP = 1e-6
 
 
@@ -50,48 +53,57 @@ def triangle(rng):
 def test_gradient_and_hessian_match_finite_differences():
     rng = np.random.default_rng(1)
     for _ in range(20):
-        fd_check(triangle(rng), rng.uniform(0.5, 1.5, 2))
+        fd_check(triangle(rng), np.append(rng.uniform(0.5, 1.5, 2), rng.uniform(-0.5, 0.5)))
 
 
 @settings(max_examples=40, deadline=None)
-@given(st.integers(0, 2**31 - 1), st.floats(0.3, 2.0), st.floats(0.3, 2.0))
-def test_gradient_and_hessian_match_finite_differences_on_random_triangles(seed, l0, l1):
-    fd_check(triangle(np.random.default_rng(seed)), np.array([l0, l1]))
+@given(st.integers(0, 2**31 - 1), st.floats(0.3, 2.0), st.floats(0.3, 2.0),
+       st.floats(-0.8, 0.8))
+def test_gradient_and_hessian_match_finite_differences_on_random_triangles(seed, l0, l1, s):
+    fd_check(triangle(np.random.default_rng(seed)), np.array([l0, l1, s]))
 
 
 def test_projected_hessian_is_psd_and_exact_where_both_fibres_are_longer_than_the_base():
     rng = np.random.default_rng(2)
     for _ in range(20):
         x = triangle(rng)
-        _, _, proj = element(x, rng.uniform(0.5, 1.5, 2), exact=False)
+        base = np.append(rng.uniform(0.5, 1.5, 2), rng.uniform(-0.5, 0.5))
+        _, _, proj = element(x, base, exact=False)
         assert np.linalg.eigvalsh(proj).min() >= -1e-9 * np.abs(proj).max()
     x = triangle(rng)
-    lengths = column_lengths(x, np.array([[0, 1, 2]]), DR_INV[None], np.empty((1, 2)))[0]
-    shorter = 0.8 * lengths  # ‖f‖ > ‖f(b)‖ in both columns: c > 0, nothing clamped
-    np.testing.assert_allclose(element(x, shorter, exact=False)[2], element(x, shorter)[2])
+    measures = strain_measures(x, np.array([[0, 1, 2]]), DR_INV[None], np.empty((1, 3)))[0]
+    # ‖f‖ > ‖f(b)‖ in both columns: c > 0, nothing clamped; the shear at its base: no H₆ part
+    shorter = measures * [0.8, 0.8, 1.0]
+    np.testing.assert_allclose(element(x, shorter, exact=False)[2], element(x, shorter)[2],
+                               atol=1e-9 * np.abs(element(x, shorter)[2]).max())
 
 
 def test_zero_at_the_base_and_for_every_rigid_motion_of_it():
     """Φ measures strain change only: zero, with zero gradient, at b and at any rotation
-    and translation of b; ½ A k (λ − 1)² ‖f(b)‖² for a stretch by λ along the warp."""
+    and translation of b; ½ A k (λ − 1)² ‖f(b)‖² for a stretch by λ along the warp,
+    ½ A (k_v (√(1 + γ²) − 1)² + k_h γ²) for a shear f1 = γ f0 + ŷ."""
     rng = np.random.default_rng(3)
     base = triangle(rng)
-    length = column_lengths(base, np.array([[0, 1, 2]]), DR_INV[None], np.empty((1, 2)))[0]
+    length = strain_measures(base, np.array([[0, 1, 2]]), DR_INV[None], np.empty((1, 3)))[0]
     q, _ = np.linalg.qr(rng.normal(size=(3, 3)))
     for x in (base, base @ q.T + [0.3, -1.0, 2.0]):
         e, g, _ = element(x, length)
         assert abs(e) < 1e-20 and np.abs(g).max() < 1e-9
     rest = np.array([[0.0, 0.0, 0.0], [0.1, 0.0, 0.0], [0.03, 0.08, 0.0]])
     stretched = rest * [1.2, 1.0, 1.0]  # f0 = 1.2 x̂, f1 = ŷ: only the warp column changes
-    e = element(stretched, np.array([1.0, 1.0]))[0]
+    e = element(stretched, np.array([1.0, 1.0, 0.0]))[0]
     assert e == pytest.approx(0.5 * AREA * COEF[0] * 0.2**2, rel=1e-12)
+    sheared = rest + np.outer(rest[:, 1], [0.25, 0.0, 0.0])  # x += γ y: f0 = x̂, f1 = γx̂ + ŷ
+    e = element(sheared, np.array([1.0, 1.0, 0.0]))[0]
+    weft = np.sqrt(1 + 0.25**2) - 1.0  # ‖f1‖ grows too
+    assert e == pytest.approx(0.5 * AREA * (COEF[1] * weft**2 + COEF[2] * 0.25**2), rel=1e-12)
 
 
 def test_first_order_it_is_the_frozen_stretch_damping():
-    """For x = b + δ, Φ = ½ δᵀ H(b) δ + O(δ³) with H(b) = A k f̂f̂ᵀ through ∂f/∂x."""
+    """For x = b + δ, Φ = ½ δᵀ H(b) δ + O(δ³) with H(b) = A (k f̂f̂ᵀ + k_h ggᵀ) through ∂F/∂x."""
     rng = np.random.default_rng(4)
     base = triangle(rng)
-    length = column_lengths(base, np.array([[0, 1, 2]]), DR_INV[None], np.empty((1, 2)))[0]
+    length = strain_measures(base, np.array([[0, 1, 2]]), DR_INV[None], np.empty((1, 3)))[0]
     _, _, h = element(base, length)
     delta = rng.normal(size=9)
     for eps in (1e-3, 1e-4):
@@ -100,52 +112,107 @@ def test_first_order_it_is_the_frozen_stretch_damping():
         assert element(base + d.reshape(3, 3), length)[0] == pytest.approx(quadratic, rel=20 * eps)
 
 
-def test_the_mesh_kernels_sum_the_elements():
+def test_the_mesh_kernels_sum_the_elements_and_hinges():
+    """Triangles (stretch, shear) and hinges (bending, the dihedral kernel with c → βc/ĥ and
+    θ̄ → Θ): energy, gradient against central differences, projected Hessian blocks."""
     cfg = load_config({"mesh": {"grid": {"nx": 5, "ny": 4, "plane": "xz"}},
-                       "material": {"damping": 0.02, "stretch": [800.0, 500.0],
-                                    "damping_model": "strain"}})
+                       "material": {"damping": 0.02, "stretch": [800.0, 500.0], "shear": 60.0,
+                                    "bend": 1e-3}})
     model = build_model(cfg)
     rng = np.random.default_rng(5)
     base = model.mesh.positions + rng.normal(0, 0.02, model.mesh.positions.shape)
     x = base + rng.normal(0, 0.02, base.shape)
-    term = StretchDissipation(model.faces, model.dr_inv, model.area, model.stretch_damping,
-                              model.tri_slots)
-    term.begin(base, None, 0.01)
-    np.testing.assert_allclose(model.stretch_damping, 0.02 * np.array([[800.0, 500.0]]).repeat(
+    term = StrainDissipation(model)
+    term.begin(((1.0, base),), 0.01)
+    np.testing.assert_allclose(model.strain_damping, 0.02 * np.array([[800.0, 500.0, 60.0]]).repeat(
         len(model.faces), axis=0))
+    np.testing.assert_allclose(model.bend_damping, 0.02 * model.hinge_coef)
+    np.testing.assert_allclose(term.angle, dihedral_angles(base, model.hinge))
     matrix = BlockMatrix(model.pattern)
     grad = np.zeros_like(x)
     total = term.assemble(x, grad, matrix.values)
     assert total == pytest.approx(term.energy(x), rel=1e-12)
+    bending = dihedral_total_energy(x, model.hinge, term.angle, term.bend_coef)
+    assert bending > 0.0
     assert total == pytest.approx(dissipation_energy(x, model.faces, model.dr_inv, model.area,
-                                                     term.coef, term.length), rel=1e-12)
-    g_sum, e_sum = np.zeros_like(x), 0.0
+                                                     term.coef, term.base) + bending, rel=1e-12)
+    fd = np.empty(x.size)
+    for i in range(x.size):
+        d = np.zeros(x.size)
+        d[i] = 1e-7
+        fd[i] = (term.energy(x + d.reshape(x.shape)) - term.energy(x - d.reshape(x.shape))) / 2e-7
+    np.testing.assert_allclose(grad.ravel(), fd, atol=1e-6 * np.abs(fd).max())
     g, h = np.empty(9), np.empty((9, 9))
     dense = np.zeros((x.size, x.size))
     for t, f in enumerate(model.faces):
-        e_sum += dissipation_element(x[f[0]], x[f[1]], x[f[2]], model.dr_inv[t], model.area[t],
-                                     term.coef[t], term.length[t], False, g, h)
+        dissipation_element(x[f[0]], x[f[1]], x[f[2]], model.dr_inv[t], model.area[t],
+                            term.coef[t], term.base[t], False, g, h)
         idx = np.concatenate([3 * f[a] + np.arange(3) for a in range(3)])
-        g_sum[f] += g.reshape(3, 3)
         dense[np.ix_(idx, idx)] += h
-    assert e_sum == pytest.approx(total, rel=1e-12)
-    np.testing.assert_allclose(grad, g_sum, atol=1e-12)
+    g, h = np.empty(12), np.empty((12, 12))
+    for e, hinge in enumerate(model.hinge):
+        dihedral_element(*x[hinge], term.angle[e], term.bend_coef[e], True, g, h)
+        idx = np.concatenate([3 * v + np.arange(3) for v in hinge])
+        dense[np.ix_(idx, idx)] += h
     v = rng.normal(size=x.shape)
     np.testing.assert_allclose(matrix.multiply(v, np.empty_like(v)).ravel(), dense @ v.ravel(),
                                atol=1e-9 * np.abs(dense).max())
 
 
+def test_a_rigid_rotation_feels_no_damping_force():
+    """A bent, sheared, stretched sheet turned rigidly (and moved) from its base: Φ and its
+    force are zero, for every part (the frozen βK form resists the same motion)."""
+    cfg = load_config({"mesh": {"grid": {"nx": 6, "ny": 6, "plane": "xz"}},
+                       "material": {"damping": 0.05, "shear": 80.0, "bend": 1e-3}})
+    model = build_model(cfg)
+    rng = np.random.default_rng(11)
+    base = model.mesh.positions + rng.normal(0, 0.03, model.mesh.positions.shape)
+    term = StrainDissipation(model)
+    term.begin(((1.0, base),), 1 / 30)
+    axis = np.array([0.3, 1.0, -0.2]) / np.linalg.norm([0.3, 1.0, -0.2])
+    k = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
+    turn = np.eye(3) + np.sin(0.7) * k + (1 - np.cos(0.7)) * k @ k  # 0.7 rad
+    x = base @ turn.T + [0.2, -0.5, 1.0]
+    grad = np.zeros_like(x)
+    matrix = BlockMatrix(model.pattern)
+    assert abs(term.assemble(x, grad, matrix.values)) < 1e-18
+    assert np.abs(grad).max() < 1e-10
+    # the same motion as frozen damping's force βK(b)(x − b)/ĥ: not zero
+    frozen = BlockMatrix(model.pattern)
+    from clothtool.sim.energies.energy import FemElastic
+    FemElastic(model).assemble(base, np.zeros_like(base), frozen.values)
+    assert np.abs(frozen.multiply(x - base, np.empty_like(x))).max() > 1e-3
+
+
+def test_bdf2_and_the_second_stage_measure_rates_from_a_combination_of_strains():
+    """The base strains are Σ w_i m(x_i) over the past (BDF2: 4/3 and −1/3), not the
+    strains of the combined positions."""
+    cfg = load_config({"mesh": {"grid": {"nx": 4, "ny": 4, "plane": "xz"}},
+                       "material": {"damping": 0.05, "bend": 1e-3}})
+    model = build_model(cfg)
+    rng = np.random.default_rng(12)
+    a = model.mesh.positions + rng.normal(0, 0.03, model.mesh.positions.shape)
+    b = model.mesh.positions + rng.normal(0, 0.03, model.mesh.positions.shape)
+    term = StrainDissipation(model)
+    term.begin(((4 / 3, a), (-1 / 3, b)), 0.02)
+    m = lambda y: strain_measures(y, model.faces, model.dr_inv, np.empty((len(model.faces), 3)))
+    np.testing.assert_allclose(term.base, np.maximum(4 / 3 * m(a) - m(b) / 3, [0, 0, -np.inf]))
+    np.testing.assert_allclose(term.angle, 4 / 3 * dihedral_angles(a, model.hinge)
+                               - dihedral_angles(b, model.hinge) / 3)
+    np.testing.assert_allclose(term.coef, model.strain_damping / 0.02)
+
+
 @pytest.mark.parametrize("substeps", [1, 16])
 def test_a_crumpled_sheet_relaxes_by_frame_8_at_one_step_per_frame(substeps):
     """A 16×16 sheet released from random displacements of up to 0.6 cell (folded and
-    inverted triangles, fibres stretched up to 2.7×), ``damping_model: strain``: the largest
-    principal stretch is at most 1.1 by frame 8, at one step per frame as at 16 (with the
-    damping frozen at the start of the step, 1.34 at one step per frame)."""
+    inverted triangles, fibres stretched up to 2.7×), with the default damping (``strain``:
+    stretch, shear and bending): the largest principal stretch is at most 1.1 by frame 8,
+    at one step per frame (1.066) as at 16 (with the damping frozen at the start of the
+    step, 1.29 at one step per frame)."""
     def crumple(model, state):
         state.x += np.random.default_rng(0).uniform(-0.6, 0.6, state.x.shape) / 15
 
     cfg = load_config({"mesh": {"grid": {"nx": 16, "ny": 16, "plane": "xz"}},
-                       "material": {"damping_model": "strain"},
                        "solver": {"substeps": substeps}, "time": {"fps": 30, "frames": 8}})
     model = build_model(cfg)
     run = run_in_memory(cfg, (0, 8), warmup=False, initial=crumple)
@@ -154,12 +221,15 @@ def test_a_crumpled_sheet_relaxes_by_frame_8_at_one_step_per_frame(substeps):
     assert max_principal_stretch(run.positions[8], model.faces, model.dr_inv) <= 1.1
 
 
-def test_strain_damping_is_the_implicit_methods_and_off_by_default():
+def test_strain_damping_is_the_implicit_methods_default():
     base = {"mesh": {"grid": {"nx": 4, "ny": 4}}}
-    assert build_model(load_config(base)).stretch_damping is None  # frozen βK(x_n)
+    assert build_model(load_config(base)).strain_damping is not None
+    frozen = {**base, "material": {"damping_model": "frozen"}}
+    assert build_model(load_config(frozen)).strain_damping is None  # frozen βK(x_n)
     strain = {**base, "material": {"damping_model": "strain"}}
-    assert build_model(load_config(strain)).stretch_damping is not None
     for method in ("explicit", "vbd", "mass-spring"):
+        # the default is no request: these methods damp with their own βK
+        assert build_model(load_config({**base, "solver": {"method": method}})).strain_damping is None
         with pytest.raises(InputError, match=rf"solver.method: '{method}' does not support "
                                              r"material.damping_model: strain"):
             load_config({**strain, "solver": {"method": method}})

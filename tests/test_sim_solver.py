@@ -178,9 +178,10 @@ def test_energy_decreases_under_damping(tmp_path):
     e_undamped = total_energy(stats(tmp_path / "undamped"))
     assert e_damped[0] > 1.0
     assert np.all(np.diff(e_damped) <= 0.0)
-    # stiffness-proportional damping slows the release of the stretch (overdamped at first)
-    # but leaves less energy in the end
-    assert e_damped[1] > e_undamped[1]
+    # BDF2's first step (SDIRK2) adds no numerical damping of its own: the undamped sheet
+    # keeps its energy through it (a Taylor step back lost 94 % of it there); damping
+    # leaves less energy in the end
+    assert e_undamped[1] > 0.9 * e_undamped[0]
     assert e_damped[-1] < 0.8 * e_undamped[-1]
 
 

@@ -152,7 +152,8 @@ def test_converged_vbd_follows_backward_euler_to_the_implicit_equilibrium():
     def sheet(method, **solver):
         cfg = load_config({"mesh": {"grid": {"nx": 5, "ny": 5, "plane": "xz"}},
                            "material": {"density": 0.2, "stretch": 5000.0, "shear": 50.0,
-                                        "bend": 1e-5, "damping": 0.01},
+                                        "bend": 1e-5, "damping": 0.01,
+                                        "damping_model": "frozen"},  # VBD's damping
                            "scene": {"pins": ["top_corners"]},
                            "solver": {"method": method, **solver}})
         model = build_model(cfg)

@@ -261,21 +261,26 @@ class ModelBuilder:
                                membrane_model)
         if len(self.stitches):
             terms.append(Stitch(self.stitches, self.stitch_stiffness.copy()))
-        pattern = BlockPattern(n, *[t.elements for t in terms])
-        constant = _bind(terms, pattern)
-        damping_terms = damping_constant = None
         beta = self.tri_damping
-        stretch_damping = None
-        strain = self.material.damping_model == "strain" and np.any(beta > 0.0)
-        if strain or np.any(beta != beta[0]):
-            # per-panel damping: D = (1/ĥ) Σ β_e K_e, β_e per element; with damping_model:
-            # strain, stretch is damped by the dissipation potential of β_t k instead
-            # (clothtool.sim.energies.dissipation)
+        strain = (self.material.damping_model == "strain" and np.any(beta > 0.0)
+                  and self._method() == "implicit")
+        bend_damping = None
+        elements = [t.elements for t in terms]
+        if strain and len(hinge):  # the bending dissipation's hinges in the matrix too
+            bend_damping = coef * beta[hinge_faces].mean(axis=1)
+            elements.append(hinge)
+        pattern = BlockPattern(n, *elements)
+        constant = _bind(terms, pattern)
+        damping_terms = damping_constant = strain_damping = None
+        if strain:
+            # stretch, shear and bending damped by the dissipation potential of their change
+            # (clothtool.sim.energies.dissipation), β per triangle and hinge
+            strain_damping = np.column_stack([self.tri_stretch[:, :2] * beta[:, None],
+                                              self.tri_shear * beta])
+        elif np.any(beta != beta[0]):
+            # per-panel damping: D = (1/ĥ) Σ β_e K_e, β_e per element
             scaled = self.tri_stretch.copy()
             scaled[:, :2] *= beta[:, None]
-            if strain:
-                stretch_damping = scaled[:, :2].copy()
-                scaled[:, :2] = 0.0
             damped_plate = None if plate is None else (*plate[:2], plate[2] * beta[0])
             damping_terms = _elastic_terms(faces, dr_inv, self.area, scaled,
                                            self.tri_shear * beta, bend_model, damped_plate, n,
@@ -300,8 +305,13 @@ class ModelBuilder:
             stitches=next((t for t in terms if isinstance(t, Stitch)), None),
             origin=self.origin, file_vertex=self.file_vertex,
             damping_terms=damping_terms, damping_constant=damping_constant,
-            stretch_damping=stretch_damping,
+            strain_damping=strain_damping, bend_damping=bend_damping,
+            hinge_damping_slots=pattern.slots(hinge) if bend_damping is not None else None,
         )
+
+    def _method(self):
+        """``solver.method`` (implicit when the builder has no config)."""
+        return "implicit" if self.config is None else self.config.solver.method
 
     def _membrane_model(self):
         """``material.membrane_model``; ``nodal`` (and ``triangle`` when the membrane is off)."""

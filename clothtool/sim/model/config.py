@@ -33,7 +33,7 @@ __all__ = ["load_config", "resolved_yaml", "as_dict", "Config", "SECTIONS", "COL
 PLANES = ("xy", "xz", "yz")
 BEND_MODELS = ("hessian", "dihedral", "quadratic")
 MEMBRANE_MODELS = ("triangle", "nodal")
-DAMPING_MODELS = ("frozen", "strain")  # stretch damping: βK(x_n) frozen, or the strain-change potential
+DAMPING_MODELS = ("strain", "frozen")  # the strains' change potential, or βK(x_n) frozen
 STANDARD_GRAVITY = 9.81  # m/s², of bending_length → bend (k_b = ρ g c³)
 METHODS = tuple(methods.METHODS)
 PRECONDITIONERS = ("jacobi", "multigrid")
@@ -165,7 +165,7 @@ class Material(Section):
     bend: float = setting(1.0e-5, non_negative)
     damping: float = setting(0.01, non_negative)
     bend_model: str = setting("dihedral", choice(BEND_MODELS))
-    damping_model: str = setting("frozen", choice(DAMPING_MODELS))
+    damping_model: str = setting("strain", choice(DAMPING_MODELS))
     bending_length: float | None = setting(None, positive)
     membrane_model: str = setting("triangle", choice(MEMBRANE_MODELS))
 

@@ -12,17 +12,18 @@ and sets v_{n+1} = (x − b)/ĥ, where W is the method's elastic energy
 - ``bdf2``: BDF2, x_{n+1} − (4/3)x_n + (1/3)x_{n−1} = ĥ v_{n+1} and
   v_{n+1} − (4/3)v_n + (1/3)v_{n−1} = ĥ M⁻¹f(x_{n+1}) with ĥ = 2h/3; eliminating
   v_{n+1} gives the minimisation above with b = (4x_n − x_{n−1})/3 and
-  x̃ = b + ĥ (4v_n − v_{n−1})/3 (Hairer & Wanner, "Solving ODEs II", §V.1). The first
-  step takes its history (x_{−1}, v_{−1}) from a second-order Taylor step back from the
-  initial state; later ones from the State.
+  x̃ = b + ĥ (4v_n − v_{n−1})/3 (Hairer & Wanner, "Solving ODEs II", §V.1), x_{n−1} and
+  v_{n−1} from the State. The first step has no past and invents none: it is a one-step
+  second-order method, two stages of SDIRK2 (:meth:`NewtonIntegrator.first_step`).
 
-D = (β/ĥ) K is stiffness-proportional (Rayleigh) damping with β = material.damping
-seconds and K the PSD-projected elastic Hessian at x_n (Baraff & Witkin 1998), so that the
-damping force is −βK v_{n+1} with the integrator's own velocity, and Φ = 0; with
-``material.damping_model: strain`` stretch is taken out of D (its terms then carry β, as
-per-panel damping's do) and damped by the dissipation potential Φ of the fibres' length
-change (:mod:`clothtool.sim.energies.dissipation`), invariant under rigid motions of each triangle.
-Collider friction uses ĥ the same way (:mod:`clothtool.contact.projection`).
+Damping (β = material.damping seconds): with ``material.damping_model: strain`` (the
+default) D = 0 and Φ is the dissipation potential of the change of stretch, shear and
+bending over the step (:mod:`clothtool.sim.energies.dissipation`), which no rigid motion
+changes; with ``frozen``, Φ = 0 and D = (β/ĥ) K is stiffness-proportional (Rayleigh)
+damping with K the PSD-projected elastic Hessian at x_n (Baraff & Witkin 1998), so that the
+damping force is −βK v_{n+1} with the integrator's own velocity (per panel: Σ_e β_e K_e).
+Collider friction uses ĥ the same way (:mod:`clothtool.contact.projection`). Each piece of
+E is a term of :mod:`clothtool.sim.solve.potential`; the loop sums their list.
 
 Each Newton step solves (M/ĥ² + K(x) + D) Δx = −∇E(x) by filtered PCG
 (:mod:`clothtool.sim.linalg.pcg`); with ``line_search`` its length is halved (at most
@@ -63,10 +64,12 @@ import numpy as np
 from clothtool.errors import NumericalError
 from clothtool.contact.projection import resolve_collisions
 from clothtool.sim.solve.contact import BarrierContact
-from clothtool.sim.energies.dissipation import StretchDissipation
+from clothtool.sim.solve.potential import (Contact, Dissipation, Elastic, Inertia, MovingPins,
+                                           RayleighDamping, Stage)
+from clothtool.sim.energies.dissipation import StrainDissipation
 from clothtool.sim.energies.energy import FemElastic
 from clothtool.sim.linalg.filter import apply_filter
-from clothtool.sim.solve.integrator import Integrator, StepReport, gravity_potential, mass_weighted
+from clothtool.sim.solve.integrator import Integrator, StepReport
 from clothtool.sim.linalg.blocks import BlockMatrix, ConstraintFilter
 from clothtool.sim.linalg.pairs import NO_PAIRS
 from clothtool.sim.linalg.pcg import filtered_pcg, make_preconditioner
@@ -85,6 +88,11 @@ EW_GAMMA, EW_MAX = 0.9, 0.15
 # friction's stick stiffness hides velocity errors from that energy (a sheet on a sheet at
 # 30° that must hold slid 137 mm in 2 s)
 ERROR_SHARE = 0.1
+SDIRK_GAMMA = 1.0 - np.sqrt(0.5)  # Alexander's SDIRK2: L-stable, exact for free fall
+# SDIRK2's first stage enters the second's inertia target with its error amplified by
+# 2(1 − γ)/γ ≈ 4.8: it is solved to a tenth of newton_tolerance (the 1e7 N/m plate at one step
+# per frame: 0.160 m from its tightly solved step at the full tolerance, 0.118 m at a tenth)
+SDIRK_FIRST_TOL = 0.1
 
 
 def eisenstat_walker(g_norm, g_prev, previous, floor):
@@ -106,7 +114,8 @@ def _filtered(g, kind, normal, constrained):
 
 
 class NewtonIntegrator(Integrator):
-    """Newton + filtered PCG on the incremental potential of an elastic energy.
+    """Newton + filtered PCG on the incremental potential, a list of terms
+    (:mod:`clothtool.sim.solve.potential`).
 
     A subclass names its energy (``energy_class``, see :mod:`clothtool.sim.energies.energy`) and
     whether it uses ``solver.preconditioner`` (``multigrid``; otherwise block Jacobi).
@@ -120,195 +129,165 @@ class NewtonIntegrator(Integrator):
         n = model.n_vertices
         pattern = self.elastic.pattern
         self.matrix = BlockMatrix(pattern)
-        self._damping = BlockMatrix(pattern) if model.damping > 0 else None
-        # per-panel damping (materials): the terms with their stiffness × β_e
-        self._panel_damping = (FemElastic(model, model.damping_terms, model.damping_constant)
-                               if model.damping_terms is not None else None)
-        # damping_model: strain: the dissipation potential Φ of the fibres' length change
-        self._dissipation = (StretchDissipation(model.faces, model.dr_inv, model.area,
-                                                model.stretch_damping, model.tri_slots)
-                             if model.stretch_damping is not None else None)
         self._grad = np.zeros((n, 3))
-        self._tmp = np.zeros((n, 3))
-        self._damped = np.zeros((n, 3))
         self._normal = np.zeros((n, 3))
         self._free_mass = float(np.sum(model.mass[model.free]))
         self.preconditioner = make_preconditioner(
             solver.preconditioner if self.multigrid else "jacobi", pattern, model.faces)
-        self.contact = None  # mesh colliders and self-collision (clothtool.sim.solve.contact)
-        if model.contact is not None:
-            self.contact = BarrierContact(model.contact, model.mass, model.free, h,
-                                          max(model.tri_stretch[:, :2].max(), model.tri_shear.max()),
-                                          solver.friction_velocity)
-            self.contact.check_initial(model.mesh.positions)
+        self.terms = self._terms(model, solver, h, pattern)
 
-    def potential(self, x, base, inertia_target, h_eff):
-        """E(x) = 1/(2ĥ²)‖x − x̃‖²_M − Σ m g·x + W(x) + ½(x − base)ᵀD(x − base), with the
-        damping matrix D of the last step."""
-        d = x - inertia_target
-        kinetic = 0.5 * mass_weighted(d, d, self.model.mass) / (h_eff * h_eff)
-        total = kinetic + gravity_potential(x, self.model.mass, self.model.gravity)
-        total += self.elastic.energy(x)
-        if self._dissipation is not None:
-            total += self._dissipation.energy(x)
-        if self._damping is not None:
-            a = x - base
-            total += 0.5 * float(np.sum(a * self._damping.multiply(a, np.empty_like(a))))
-        return total
+    def _terms(self, model, solver, h, pattern):
+        """The incremental potential: elastic first (it starts the sums), then inertia and
+        gravity, damping (frozen Rayleigh, per-panel, dissipation potentials), moving pins,
+        barrier contact and friction."""
+        terms = [Elastic(self.elastic), Inertia(model.mass, model.gravity)]
+        if model.damping > 0 and model.strain_damping is None:
+            # frozen βK(x_n); per-panel damping (materials): the terms with stiffness × β_e
+            panel = (FemElastic(model, model.damping_terms, model.damping_constant)
+                     if model.damping_terms is not None else None)
+            terms.insert(1, RayleighDamping(self.elastic, BlockMatrix(pattern), model.damping,
+                                            panel))
+        if model.strain_damping is not None:
+            # damping_model: strain: the dissipation potential of the strains' change
+            terms.append(Dissipation(StrainDissipation(model)))
+        if len(model.moving_pinned):
+            terms.append(MovingPins())
+        if model.contact is not None:  # mesh colliders and self-collision
+            contact = BarrierContact(model.contact, model.mass, model.free, h,
+                                     max(model.tri_stretch[:, :2].max(), model.tri_shear.max()),
+                                     solver.friction_velocity)
+            contact.check_initial(model.mesh.positions)
+            terms.append(Contact(contact, model.mass))
+        return terms
 
-    def along(self, x, dx, base, target, h_eff):
-        """E(x + s dx) as a function of s and W(x + s dx), for the line search (Φ, when there
-        is one, is evaluated inside). The damping term is quadratic along the line, ½(a + s dx)ᵀD(a + s dx) with a = x − base: from
-        D a (kept in self._damped) and D dx (left in self._tmp), no product per trial."""
-        mass, g = self.model.mass, self.model.gravity
-        inv_h2 = 1.0 / (h_eff * h_eff)
-        if self._damping is not None:
-            self._damping.multiply(dx, self._tmp)
-            at_x = 0.5 * float(np.sum((x - base) * self._damped))
-            cross = float(np.sum(dx * self._damped))
-            curve = float(np.sum(dx * self._tmp))
-        else:
-            at_x = cross = curve = 0.0
+    @property
+    def contact(self):
+        """The run's :class:`BarrierContact` (None without barrier contact)."""
+        return next((t.contact for t in self.terms if isinstance(t, Contact)), None)
 
-        dissipation = self._dissipation
+    def potential(self, x):
+        """E(x) of the last stage begun (:meth:`begin`)."""
+        return sum(term.energy(x) for term in self.terms)
 
-        def energy(s, w):
-            y = x + s * dx
-            d = y - target
-            total = (0.5 * mass_weighted(d, d, mass) * inv_h2 + gravity_potential(y, mass, g)
-                     + w + at_x + s * cross + 0.5 * s * s * curve)
-            return total + (dissipation.energy(y) if dissipation is not None else 0.0)
-        return energy
+    def along(self, x, dx):
+        """s ↦ E(x + s dx), for the line search."""
+        lines = [term.along(x, dx) for term in self.terms]
+        return lambda s: sum(line(s) for line in lines)
 
-    def _line_search(self, x, dx, base, target, elastic, h_eff, start=1.0, contact=None):
+    def _line_search(self, x, dx, energy_x, start):
         """The first step s = start, start/2, … (at most ``MAX_HALVINGS`` halvings) with
-        E(x + s dx) ≤ E(x), given W(x) = elastic (E with the contact barrier's energy at s,
-        ``contact.energy(s)``, and elastic including it, when contact is given); 0 when
-        there is none."""
-        energy = self.along(x, dx, base, target, h_eff)
-        e0 = energy(0.0, elastic)
+        E(x + s dx) ≤ E(x) = energy_x; 0 when there is none."""
+        energy = self.along(x, dx)
         s = start
         for _ in range(MAX_HALVINGS):
-            w = self.elastic.energy(x + s * dx) + (contact.energy(s) if contact is not None else 0.0)
-            if energy(s, w) <= e0:
+            if energy(s) <= energy_x:
                 return s
             s *= 0.5
         return 0.0
 
+    def stage(self, state, duration, h_eff, base, target, past):
+        """The stage from ``state`` over ``duration`` with v = (x − base)/ĥ and inertia
+        target x̃ = ``target``; Newton's start: x_n with contact (collision-free, PCG guess
+        x̃ − x_n) or with one Newton step (the PCG guess h v_n: exactly Baraff–Witkin's
+        linearised step), else x̃ (the motion without forces, the PCG guess ĥ²g)."""
+        model = self.model
+        moving = model.moving_pinned
+        goal = model.pin_goal(state.time + duration) if len(moving) else None
+        stage = Stage(state, duration, h_eff, base, target, past, moving, goal)
+        stage.from_state = (self.solver.newton_iterations == 1
+                            or any(t.starts_at_state for t in self.terms))
+        if self.solver.newton_iterations == 1:
+            stage.start, stage.guess = state.x.copy(), duration * state.v
+        elif stage.from_state:
+            stage.start, stage.guess = state.x.copy(), target - state.x
+        else:
+            stage.start = target.copy()
+            stage.guess = np.empty_like(target)
+            stage.guess[:] = (h_eff * h_eff) * model.gravity
+        if model.has_pins:
+            stage.start[model.pinned] = state.x[model.pinned]
+            stage.guess[model.pinned] = 0.0
+        return stage
+
     def discretisation(self, state):
-        """(ĥ, base, inertia target) of the step from ``state``: the velocity after the step
-        is v = (x − base)/ĥ. Backward Euler: (h, x_n, x_n + h v_n); BDF2:
-        (2h/3, (4x_n − x_{n−1})/3, base + ĥ(4v_n − v_{n−1})/3), on the first step with the
-        history of :meth:`taylor_history`."""
+        """The step's stage: backward Euler (ĥ, b, x̃) = (h, x_n, x_n + h v_n); BDF2 with
+        its history (2h/3, (4x_n − x_{n−1})/3, b + ĥ(4v_n − v_{n−1})/3)."""
         h = self.h
         if self.bdf2:
-            x_prev, v_prev = ((state.x_prev, state.v_prev) if state.x_prev is not None
-                              else self.taylor_history(state))
             h_eff = 2.0 * h / 3.0
-            base = (4.0 * state.x - x_prev) / 3.0
-            return h_eff, base, base + h_eff * ((4.0 * state.v - v_prev) / 3.0)
-        return h, state.x, state.x + h * state.v
+            base = (4.0 * state.x - state.x_prev) / 3.0
+            return self.stage(state, h, h_eff, base, base + h_eff * ((4.0 * state.v - state.v_prev) / 3.0),
+                              ((4.0 / 3.0, state.x), (-1.0 / 3.0, state.x_prev)))
+        return self.stage(state, h, h, state.x, state.x + h * state.v, ((1.0, state.x),))
 
-    def taylor_history(self, state):
-        """(x_{−1}, v_{−1}) = (x_0 − h v_0 + ½h² a_0, v_0 − h a_0): BDF2's missing history from
-        a second-order Taylor step back, so that a quadratic motion (free fall) is exact from
-        the first step (a backward-Euler first step leaves free fall ¾h²g behind for good).
-        a_0 = g + (M + h²K)⁻¹ f on the free vertices (0 on pinned ones), f = −∇W(x_0) − βK v_0
-        the elastic and damping force at the start, K its stiffness: M⁻¹f to O(h²) for the
-        slow motions, but bounded for stiff ones — with M⁻¹f itself, a crumpled start's
-        history lies far off and the run blew up (stretch 1e8 in 12 frames)."""
-        model, h, x0, v0 = self.model, self.h, state.x, state.v
-        matrix = self.matrix
-        grad = np.zeros_like(x0)
-        self.elastic.assemble(x0, grad, matrix.values)
-        force = -grad
-        if self._panel_damping is not None:  # Σ_e β_e K_e v_0 (per-panel damping)
-            self._panel_damping.assemble(x0, np.zeros_like(x0), self._damping.values)
-            if self._dissipation is not None:  # ĥ = 1: Φ's Hessian at b = x_0 is βK_stretch
-                self._dissipation.begin(x0, None, 1.0)
-                self._dissipation.assemble(x0, np.zeros_like(x0), self._damping.values)
-            force -= self._damping.multiply(v0, np.empty_like(v0))
-        elif self._damping is not None:
-            force -= model.damping * matrix.multiply(v0, np.empty_like(v0))
-        matrix.add_diagonal(model.mass / (h * h))
-        elastic = np.zeros_like(x0)
-        filtered_pcg(matrix, force / (h * h), elastic, ConstraintFilter(model.kind, self._normal),
-                     self.solver.tolerance, self.solver.max_iterations, self.preconditioner)
-        a0 = model.gravity + elastic
-        if model.has_pins:
-            a0[model.pinned] = 0.0
-        return x0 - h * v0 + (0.5 * h * h) * a0, v0 - h * a0
-
-    def _freeze_damping(self, k_values, beta_over_h, displacement, x_n):
-        """D = (β/ĥ) K(x_n) from the blocks of K(x_n), frozen for the step, and D(x − base);
-        with per-panel β, D = (1/ĥ) Σ_e β_e K_e(x_n) from the β-scaled terms."""
-        if self._panel_damping is not None:
-            self._panel_damping.assemble(x_n, np.zeros_like(x_n), self._damping.values)
-            self._damping.values *= beta_over_h / self.model.damping
-        else:
-            np.multiply(k_values, beta_over_h, out=self._damping.values)
-        self._damping.multiply(displacement, self._damped)
+    def first_step(self, state, report):
+        """BDF2's first step, which has no past: Alexander's two-stage SDIRK2 (L-stable,
+        stiffly accurate, second order; Alexander 1977, "Diagonally implicit Runge–Kutta
+        methods for stiff ODEs"), γ = 1 − 1/√2. Stage 1 is backward Euler over γh: X, V =
+        (X − x_n)/(γh), A = (V − v_n)/(γh); stage 2 minimises with the same ĥ = γh, b = x_n +
+        (1 − γ)h V, x̃ = b + ĥ(v_n + (1 − γ)h A), whose strains' past is x_n and X in the same
+        proportion. Exact for free fall (x_n + h v_n + ½h²g at its end). Returns the last
+        stage and its solution."""
+        h, x_n, v_n = self.h, state.x, state.v
+        h_eff = SDIRK_GAMMA * h
+        first = self.stage(state, h_eff, h_eff, x_n, x_n + h_eff * v_n, ((1.0, x_n),))
+        x1 = self.minimise(first, report, SDIRK_FIRST_TOL * self.solver.newton_tolerance)
+        v1 = (x1 - x_n) / h_eff
+        a1 = (v1 - v_n) / h_eff
+        rest = (1.0 - SDIRK_GAMMA) * h
+        base = x_n + rest * v1
+        c = rest / h_eff
+        second = self.stage(state, h, h_eff, base, base + h_eff * (v_n + rest * a1),
+                            ((1.0 - c, x_n), (c, x1)))
+        return second, self.minimise(second, report)
 
     def step(self, state):
-        """Advance state by h in place; returns a :class:`~clothtool.sim.solve.integrator.StepReport`."""
-        model, solver, h = self.model, self.solver, self.h
-        matrix, values = self.matrix, self.matrix.values
-        x_n, v_n = state.x, state.v
-        h_eff, base, target = self.discretisation(state)
-        if self._dissipation is not None:  # BDF2's x_{n−1}; none at the first step
-            self._dissipation.begin(x_n, state.x_prev if self.bdf2 else None, h_eff)
-        contact = self.contact
-        if solver.newton_iterations == 1:  # exactly Baraff–Witkin's linearised step
-            x = x_n.copy()
-            dx = h * v_n  # PCG guess: the previous motion
-        elif contact is not None:  # from x_n, which is collision-free, toward x̃
-            x = x_n.copy()
-            dx = target - x_n
-        else:  # from the inertia target (the motion without forces), the first PCG from ĥ²g
-            x = target.copy()
-            dx = np.empty_like(x)
-            dx[:] = (h_eff * h_eff) * model.gravity
-        if model.has_pins:
-            x[model.pinned] = x_n[model.pinned]
-            dx[model.pinned] = 0.0
-        moving = model.moving_pinned
-        goal = model.pin_goal(state.time + h) if len(moving) else None  # end-of-step positions
-        if contact is not None:
-            contact.begin(state, moving, goal, base, h_eff)
-        kind = model.kind
-        constrained = model.has_pins
-        constraints = ConstraintFilter(kind, self._normal, constrained)
-        inertia = model.mass / (h_eff * h_eff)
-        tol = solver.newton_tolerance
+        """Advance state by h in place (BDF2's first step by :meth:`first_step`); returns a
+        :class:`~clothtool.sim.solve.integrator.StepReport`."""
         report = StepReport()
+        if self.bdf2 and state.x_prev is None:
+            stage, x = self.first_step(state, report)
+        else:
+            stage = self.discretisation(state)
+            x = self.minimise(stage, report)
+        for term in self.terms:
+            term.finish(x, report)
+        state.x_prev, state.v_prev = state.x, state.v
+        state.v = (x - stage.base) / stage.h_eff
+        state.x = x
+        state.time += self.h
+        model = self.model
+        if model.has_colliders:
+            resolve_collisions(state.x, state.v, model.free, model.spheres, model.planes,
+                               model.collision_margin)
+        return report
+
+    def _behind(self, x):
+        """How far (m) prescribed motion (moving pins, animated colliders) is from the end of
+        the stage."""
+        return max((term.behind(x) for term in self.terms), default=0.0)
+
+    def minimise(self, stage, report, tol=None):
+        """Newton's minimisation of the stage's incremental potential Σ_k E_k (see the
+        module docstring) to ``tol`` (default ``solver.newton_tolerance``): its solution x;
+        the counts go into ``report``."""
+        solver, terms, matrix = self.solver, self.terms, self.matrix
+        for term in terms:
+            term.begin(stage)
+        x, dx, h_eff = stage.start, stage.guess, stage.h_eff
+        constraints = ConstraintFilter(self.model.kind, self._normal, self.model.has_pins)
+        tol, grad = solver.newton_tolerance if tol is None else tol, self._grad
         forcing, g_prev, step, cut = solver.tolerance, 0.0, 1.0, False
         error_floor = ((ERROR_SHARE * tol) ** 2 * self._free_mass
-                       if solver.newton_iterations > 1 and contact is None else 0.0)
-        damped = self._damping is not None
-        from_x_n = solver.newton_iterations == 1 or contact is not None  # x starts equal to x_n
-        if damped and not from_x_n:
-            if self._panel_damping is None:  # per-panel damping assembles its own terms at x_n
-                self.elastic.assemble(x_n, self._grad, values)
-            self._freeze_damping(values, model.damping / h_eff, x - base, x_n)
-        # moving pins and colliders still short of their goal get three times as many more steps
+                       if solver.newton_iterations > 1 and not any(t.exact_solve for t in terms)
+                       else 0.0)
+        line_search = solver.line_search or any(t.needs_line_search for t in terms)
+        # prescribed motion still short of its goal gets three times as many more steps
         for it in range(4 * solver.newton_iterations):
-            if it >= solver.newton_iterations and self._behind(x, moving, goal) <= REACHED:
+            if it >= solver.newton_iterations and self._behind(x) <= REACHED:
                 break
-            elastic = self.elastic.assemble(x, self._grad, values)
-            if self._dissipation is not None:  # Φ's value enters E in along()
-                self._dissipation.assemble(x, self._grad, values)
-            if damped:
-                if it == 0 and from_x_n:
-                    self._freeze_damping(values, model.damping / h_eff, x - base, x_n)
-                values += self._damping.values
-            matrix.add_diagonal(inertia)
-            # ∇E = M(x − x̃)/ĥ² − M g + ∇W + D(x − base)
-            grad = self._mass3 * (x - target) / (h_eff * h_eff) - self._mass3 * model.gravity + self._grad
-            if damped:
-                grad += self._damped
-            if contact is not None:
-                elastic += contact.assemble(x, grad, matrix)
-            free_grad = _filtered(grad, kind, self._normal, constrained)
+            energy = sum(term.assemble(x, grad, matrix) for term in terms)
+            free_grad = _filtered(grad, constraints.kind, self._normal, constraints.active)
             g_norm = float(np.sqrt(np.sum(free_grad * free_grad)))
             if it > 0:
                 # PCG guess: what the line search left of the last step; after a step that CCD
@@ -318,81 +297,47 @@ class NewtonIntegrator(Integrator):
                 dx = np.zeros_like(dx) if cut else (1.0 - step) * dx
                 forcing = eisenstat_walker(g_norm, g_prev, forcing, solver.tolerance)
             g_prev = g_norm
-            # moving pins and animated colliders short of their end-of-step positions move
-            # with this step (see the module docstring)
-            prescribed = self._behind(x, moving, goal) > REACHED
+            prescribed = self._behind(x) > REACHED  # moves with this step
             rhs = -grad
             if it > 0 and float(np.sum(rhs * dx)) < 0.0:
                 # the rest of the last step climbs the new potential (after a re-lag of the
                 # friction, say): a loose PCG from it could stop on an ascent direction
                 dx[:] = 0.0
-            if prescribed and goal is not None:
-                dx[moving] = goal - x[moving]
-            if prescribed and contact is not None:
-                contact.add_collider_coupling(rhs)
+            if prescribed:
+                for term in terms:
+                    term.prescribe(x, dx, rhs)
+            operator = next((t.operator for t in terms if t.operator is not NO_PAIRS), NO_PAIRS)
             cg_its, res = filtered_pcg(matrix, rhs, dx, constraints, forcing,
-                                       solver.max_iterations, self.preconditioner,
-                                       contact.operator if contact is not None else NO_PAIRS,
+                                       solver.max_iterations, self.preconditioner, operator,
                                        error_floor)
             report.newton_iterations += 1
             report.cg_iterations += cg_its
             report.residual = max(report.residual, res)
             if not np.all(np.isfinite(dx)):
                 raise NumericalError("the linear solve produced non-finite values")
-            step = 1.0
-            if contact is not None:  # from the collision-free fraction of the step
-                step = contact.max_step(dx)
+            step = min((term.max_step(x, dx) for term in terms), default=1.0)
             cut = step < 1.0
-            if (solver.line_search or contact is not None) and not prescribed:
-                step = self._line_search(x, dx, base, target, elastic, h_eff, step, contact)
-            elif damped:
-                self._damping.multiply(dx, self._tmp)
-            if contact is not None:
-                contact.advance(step)
+            if line_search and not prescribed:
+                step = self._line_search(x, dx, energy, step)
             if step > 0.0:
                 x += step * dx
-                if prescribed and step == 1.0 and goal is not None:
-                    x[moving] = goal  # exactly
-                if damped:  # D(x − base) moves by step · D dx (left in self._tmp)
-                    self._damped += step * self._tmp
-            moved = float(np.max(np.abs(step * dx))) / h
+            for term in terms:
+                term.advance(x, dx, step)
+            moved = float(np.max(np.abs(step * dx))) / self.h
             # converged when a full Newton step is small, in velocity and in its decrement
             # Δxᵀ H Δx = −∇E·Δx; a step the line search shortened is small because the model
-            # was poor there, not because x is near the minimum
+            # was poor there, not because x is near the minimum; then each term's own test
             converged = step == 0.0 or (step == 1.0 and moved <= tol and -float(
                 np.sum(grad * dx)) <= tol * tol * self._free_mass)
-            if converged and step > 0.0 and contact is not None and contact.n_lag:
-                # friction's stick stiffness 2μλ/(ĥε_v) makes the Newton steps of a sheet that
-                # starts sliding tiny: converged only once the residual force would change no
-                # velocity by more than tol within the step either
-                converged = h_eff * float(np.max(
-                    np.sqrt(np.sum(free_grad * free_grad, axis=1)) / model.mass)) <= tol
-            # converged: done unless re-lagging the friction pairs changes their force
-            if (converged and self._behind(x, moving, goal) <= REACHED
-                    and (contact is None or contact.relag(x) <= tol)):
+            if converged and step > 0.0:
+                converged = max(term.settled(free_grad, h_eff) for term in terms) <= tol
+            # converged: done unless re-lagging lagged terms (friction) changes their force
+            if (converged and self._behind(x) <= REACHED
+                    and all(term.relag(x) <= tol for term in terms)):
                 break
-        behind = self._behind(x, moving, goal)
+        behind = self._behind(x)
         if behind > REACHED:
             raise NumericalError(
                 f"a moving pin or collider could not reach its position without crossing the "
                 f"cloth (still {behind:.3g} m away after {report.newton_iterations} Newton steps)")
-        state.x_prev, state.v_prev = x_n, v_n
-        state.v = (x - base) / h_eff
-        state.x = x
-        state.time += h
-        if contact is not None:
-            contact.finish(x)
-            report.contacts, report.min_separation = contact.contacts, contact.min_separation
-        if model.has_colliders:
-            resolve_collisions(state.x, state.v, model.free, model.spheres, model.planes,
-                               model.collision_margin)
-        return report
-
-    def _behind(self, x, moving, goal):
-        """How far (m) moving pins and animated colliders are from their end-of-step positions."""
-        worst = 0.0
-        if goal is not None:
-            worst = float(np.max(np.abs(goal - x[moving])))
-        if self.contact is not None:
-            worst = max(worst, self.contact.colliders_behind())
-        return worst
+        return x
