@@ -265,3 +265,31 @@ def test_a_curved_rest_mesh_is_bent_with_the_dihedral_model(tmp_path):
     write_ply(tmp_path / "bowl.ply", x, faces)
     model = build_model(load_config({"mesh": {"ply": str(tmp_path / "bowl.ply")}}))
     assert model.bend_model == "dihedral" and model.plate is None
+
+
+def test_panels_of_their_own_bend_and_damping_are_bent_as_a_plate():
+    """Per-panel bend and damping: Q = Σ_v k_v A_v Ĥ_vᵀW_vĤ_v with k_v the mean of the vertex's
+    triangles (the damping's the same with k_v β_v). A sheet whose half along y is twice as
+    stiff, rolled about y (x_z = ½κx², every vertex bent alike), stores 1.5 times the energy of
+    the uniform sheet, less what the panel border's blended vertices give (one row of 21)."""
+    from clothtool.sim.model.builder import build_model
+
+    grid = {"nx": 20, "ny": 20, "width": 0.2, "height": 0.2, "plane": "xy"}
+    uniform = build_model(load_config({"mesh": {"grid": grid},
+                                       "material": {"bend": 1e-4, "damping": 0.01}}))
+    centre = uniform.mesh.rest3d[uniform.faces].mean(axis=1)
+    half = [int(t) for t in np.flatnonzero(centre[:, 1] > np.median(centre[:, 1]))]
+    panels = build_model(load_config({
+        "mesh": {"grid": grid}, "material": {"bend": 1e-4, "damping": 0.01},
+        "materials": {"stiff": {"faces": half, "bend": 2e-4, "damping": 0.03}}}))
+    assert panels.bend_model == "hessian"
+    x = uniform.mesh.rest3d.copy()
+    x[:, 2] = 0.5 * 10.0 * x[:, 0] ** 2
+
+    def energy(plate):
+        return hessian_gradient(x, *plate, np.zeros((0, 3)))
+
+    assert energy(panels.plate) / energy(uniform.plate) == pytest.approx(1.5, abs=0.03)
+    damped = next(t for t in panels.damping_terms if type(t).__name__ == "PlateBending")
+    # β k: 0.01·1e-4 on one half, 0.03·2e-4 on the other: (1 + 6)/2 = 3.5 times 0.01 · uniform
+    assert energy(damped.plate) / (0.01 * energy(uniform.plate)) == pytest.approx(3.5, abs=0.1)

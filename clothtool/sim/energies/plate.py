@@ -45,8 +45,9 @@ PRUNE = 1e-10  # |Q_ij| ≤ PRUNE·√(Q_ii Q_jj) is rounding of a cancelled ent
 SQRT2 = np.sqrt(2.0)
 
 
-def hessian_bending_matrix(uv, faces):
-    """Q (N × N scipy CSR, symmetric PSD, unit rigidity) of a flat pattern uv (N, 2), faces (M, 3)."""
+def hessian_bending_matrix(uv, faces, rigidity=None):
+    """Q (N × N scipy CSR, symmetric PSD) of a flat pattern uv (N, 2), faces (M, 3): unit
+    rigidity, or Σ_v k_v A_v Ĥ_vᵀ W_v Ĥ_v with ``rigidity`` k_v (N,) per vertex."""
     import scipy.sparse as sps  # 0.4 s to import: only models with plate bending pay it
 
     uv = np.asarray(uv, np.float64)
@@ -71,10 +72,11 @@ def hessian_bending_matrix(uv, faces):
     # Ĥ_r = Σ_c calib[:, r, c] S_c / A ;  Q = Σ_rc Ĥ_rᵀ diag(A W_rc) Ĥ_c
     hat = [sum(sps.diags(calib[:, r, c] / mass) @ weak[c] for c in range(3)).tocsr()
            for r in range(3)]
+    k = np.ones(n) if rigidity is None else np.asarray(rigidity, np.float64)
     q = sps.csr_matrix((n, n))
     for r in range(3):
         for c in range(3):
-            q = q + hat[r].T @ sps.diags(mass * weight[:, r, c]) @ hat[c]
+            q = q + hat[r].T @ sps.diags(k * mass * weight[:, r, c]) @ hat[c]
     q = (0.5 * (q + q.T)).tocoo()
     # entries that cancel to rounding (half of them on clothtool's grid: its diagonals carry no
     # weak-Hessian weight) would only widen the solver's matrix
@@ -83,6 +85,13 @@ def hessian_bending_matrix(uv, faces):
     q = sps.csr_matrix((q.data[keep], (q.row[keep], q.col[keep])), shape=(n, n))
     q.sort_indices()
     return q
+
+
+def on_pattern(q, other):
+    """The entries of CSR ``other`` at the stored entries of CSR ``q`` (q.data's order): the
+    values of ``other`` on q's sparsity (entries only one of them pruned are rounding)."""
+    c = q.tocoo()
+    return np.asarray(other[c.row, c.col]).ravel()
 
 
 def _taken_over(faces, n, mass, proj, boundary, yn):

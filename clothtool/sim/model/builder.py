@@ -217,7 +217,7 @@ class ModelBuilder:
             from clothtool.sim.energies.plate import hessian_bending_matrix
 
             uv = mesh.uv if mesh.uv is not None else _plane_pattern(mesh.rest3d)
-            q = hessian_bending_matrix(uv, faces) * self.tri_bend[0]
+            q = hessian_bending_matrix(uv, faces, self._per_vertex(self.tri_bend))
             plate = (q.indptr.astype(np.int64), q.indices.astype(np.int64), q.data)
         membrane_model = self._membrane_model()
         terms = _elastic_terms(faces, dr_inv, self.area, self.tri_stretch, self.tri_shear,
@@ -240,7 +240,14 @@ class ModelBuilder:
             if strain:
                 stretch_damping = scaled[:, :2].copy()
                 scaled[:, :2] = 0.0
-            damped_plate = None if plate is None else (*plate[:2], plate[2] * beta[0])
+            damped_plate = None
+            if plate is not None and np.all(beta == beta[0]):
+                damped_plate = (*plate[:2], plate[2] * beta[0])
+            elif plate is not None:  # k_v β_v per vertex, on the plate's own sparsity
+                from clothtool.sim.energies.plate import on_pattern
+
+                damped = hessian_bending_matrix(uv, faces, self._per_vertex(self.tri_bend * beta))
+                damped_plate = (*plate[:2], on_pattern(q, damped))
             damping_terms = _elastic_terms(faces, dr_inv, self.area, scaled,
                                            self.tri_shear * beta, bend_model, damped_plate, n,
                                            hinge, rest_angle,
@@ -266,6 +273,12 @@ class ModelBuilder:
             damping_terms=damping_terms, damping_constant=damping_constant,
             stretch_damping=stretch_damping,
         )
+
+    def _per_vertex(self, value):
+        """(N,) the area-weighted mean over each vertex's triangles of a per-triangle value."""
+        n, faces = len(self.mesh.positions), self.mesh.faces
+        weight = np.bincount(faces.ravel(), np.repeat(self.area, 3), minlength=n)
+        return np.bincount(faces.ravel(), np.repeat(self.area * value, 3), minlength=n) / weight
 
     def _membrane_model(self):
         """``material.membrane_model``; ``nodal`` (and ``triangle`` when the membrane is off)."""
@@ -307,12 +320,11 @@ class ModelBuilder:
         rest_angle = np.zeros(len(hinge)) if flat else dihedral_angles(mesh.rest3d, hinge)
         weights = None
         model = material.bend_model
-        if model == "hessian" and ((mesh.uv is None and _plane_pattern(mesh.rest3d) is None)
-                                   or np.any(self.tri_bend != self.tri_bend[0])
-                                   or np.any(self.tri_damping != self.tri_damping[0])):
-            # a mesh that rests in its own curved shape, a pattern per corner (garment
-            # panels) or panels of their own bend or damping: the dihedral model (a flat
-            # mesh without uv is its own pattern: its plane's coordinates)
+        if model == "hessian" and mesh.uv is None and (mesh.corner_uv is not None
+                                                       or _plane_pattern(mesh.rest3d) is None):
+            # a mesh that rests in its own curved shape or a pattern per corner (garment
+            # panels): the dihedral model (a flat mesh without uv is its own pattern: its
+            # plane's coordinates)
             model = "dihedral"
         if material.bend_model == "quadratic":
             if mesh.uv is None and mesh.corner_uv is not None:
