@@ -55,8 +55,9 @@ def cantilever_rows():
             for divisions in (20, 40):
                 uv, faces, held = strip(length, width, length / divisions, kind, seed=seed)
                 tip = np.flatnonzero(uv[:, 0] >= length - 1e-9)
-                row = {"model": model_name + (" (default)" if model_name == DEFAULT_BEND else ""),
-                       "membrane": membrane + (" (default)" if membrane == DEFAULT_MEMBRANE else ""),
+                default = (model_name == DEFAULT_BEND, membrane == DEFAULT_MEMBRANE)
+                row = {"model": model_name + (" (default)" if default[0] else ""),
+                       "membrane": membrane + (" (default)" if default[1] else ""),
                        "mesh": kind if kind in ("grid", "across", "rot45") else f"{kind} {seed}",
                        "divisions": divisions,
                        "vertices": len(uv)}
