@@ -27,8 +27,9 @@ twist and saddle for free). Q is built once from the rest pattern:
    PCG stalled and the sheet crept at rest) carry no energy at that vertex; the ring
    neighbours that see such a direction e take it over in proportion to their areas,
    W_v = P_v + Σ_w (A_w / Σ_ring A) e_w e_wᵀ, so that every direction is weighed by
-   exactly its area, Σ_v A_v W_v = Σ_v A_v I, on any mesh. Across a free edge nothing is taken over: there the plate carries no moment.
-   A_v are mixed Voronoi areas (Meyer et al. 2003).
+   exactly its area, Σ_v A_v W_v = Σ_v A_v I, on any mesh. Across a free edge nothing
+   is taken over: there the plate carries no moment. A_v are mixed Voronoi areas (Meyer
+   et al. 2003).
 
     W_bend = k_b/2 Σ_v A_v Ĥ_v(x)ᵀ W_v Ĥ_v(x),   Q = Σ_v A_v Ĥ_vᵀ W_v Ĥ_v
 
