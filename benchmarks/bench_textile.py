@@ -5,9 +5,10 @@
 Writes ``bench-results/textile.md`` and ``textile_drape.png``:
 
 - cantilever (ASTM D1388): tip drop against the elastica at overhangs of 1, 2 and 3
-  bending lengths, strips along and across a grid, at 45° to one and on a Delaunay mesh,
-  at 20 and 40 divisions along the strip, for the ``hessian`` bending with the ``triangle``
-  and ``nodal`` membranes and for ``dihedral`` (static equilibrium, :mod:`clothtool.sim.solve.statics`);
+  bending lengths, strips along and across a grid, at 45° to one, on Delaunay meshes from
+  two seeds and on a grid jittered by 35 % of the spacing, at 20 and 40 divisions along the
+  strip, for the ``hessian`` bending (the default) with the ``triangle`` (the default) and
+  ``nodal`` membranes and for ``dihedral`` (static equilibrium, :mod:`clothtool.sim.solve.statics`);
 - hanging strips along warp, weft and bias against ρgL²/(2k) (k along the bias from
   :func:`clothtool.sim.textile.bias_modulus`), with each membrane model;
 - Cusick drape (BS 5058: a 30 cm disc on an 18 cm pedestal): the drape coefficient on a
@@ -37,6 +38,7 @@ HERE = Path(__file__).resolve().parent.parent
 BASE_COMMIT = "1e6cea5"
 BASE = Path(os.environ.get("CLOTHTOOL_BASE", f"/tmp/base-{os.getpid()}"))
 G = 9.81
+DEFAULT_BEND, DEFAULT_MEMBRANE = "hessian", "triangle"  # material.bend_model, membrane_model
 
 
 def cantilever_rows():
@@ -48,11 +50,15 @@ def cantilever_rows():
     rows = []
     for model_name, membrane in (("hessian", "triangle"), ("hessian", "nodal"),
                                  ("dihedral", "triangle")):
-        for kind in ("grid", "across", "rot45", "delaunay"):
+        for kind, seed in (("grid", 0), ("across", 0), ("rot45", 0), ("delaunay", 0),
+                           ("delaunay", 2), ("jittered", 0)):
             for divisions in (20, 40):
-                uv, faces, held = strip(length, width, length / divisions, kind)
+                uv, faces, held = strip(length, width, length / divisions, kind, seed=seed)
                 tip = np.flatnonzero(uv[:, 0] >= length - 1e-9)
-                row = {"model": model_name, "membrane": membrane, "mesh": kind,
+                default = (model_name == DEFAULT_BEND, membrane == DEFAULT_MEMBRANE)
+                row = {"model": model_name + (" (default)" if default[0] else ""),
+                       "membrane": membrane + (" (default)" if default[1] else ""),
+                       "mesh": kind if kind in ("grid", "across", "rot45") else f"{kind} {seed}",
                        "divisions": divisions,
                        "vertices": len(uv)}
                 started = time.perf_counter()

@@ -34,7 +34,7 @@ def test_defaults_and_relative_paths(tmp_path):
         output: {dir: frames}
     """)
     cfg = load_config(path)
-    assert cfg.material.stretch == 5000.0 and cfg.material.bend_model == "dihedral"
+    assert cfg.material.stretch == 5000.0 and cfg.material.bend_model == "hessian"
     assert cfg.solver.integrator == "bdf2" and cfg.solver.newton_iterations == 20
     assert cfg.solver.newton_tolerance == 0.04 and cfg.time.fps == 30
     assert cfg.output.dir == tmp_path / "frames"

@@ -21,6 +21,8 @@ import numpy as np
 
 from clothtool.sim.model.config import STANDARD_GRAVITY
 
+JITTER = 0.35  # a ``jittered`` strip's vertices move by up to this fraction of the spacing
+
 
 def elastica_tip_drop(length, bend, density, gravity=STANDARD_GRAVITY):
     """Vertical tip drop (m) of a cantilever of ``length`` m clamped flat (large deflections)."""
@@ -109,6 +111,8 @@ def strip(length, width, spacing, kind="grid", *, clamp=True, seed=0):
 
     ``kind``: ``grid`` (clothtool's criss-cross grid, its lines along u and v), ``across``
     (the same grid with u and v swapped: the strip runs along the grid's second axis),
+    ``jittered`` (the grid with each vertex off the outline and the clamp moved by up to
+    JITTER of the spacing, uniformly at random over that disc),
     ``rot45`` (a square lattice turned 45°, Delaunay-triangulated) or ``delaunay`` (jittered
     points, Delaunay). With ``clamp`` the strip starts at u = −spacing/2 and the vertices with
     u ≤ spacing/2 are the clamp (two rows on a grid): the clamp line, where the strip leaves
@@ -120,17 +124,25 @@ def strip(length, width, spacing, kind="grid", *, clamp=True, seed=0):
     n = max(int(round(length / spacing)), 1)
     spacing = length / (n + 0.5) if clamp else length / n  # rows at ±spacing/2 and on to the tip
     start = -spacing / 2 if clamp else 0.0
-    if kind in ("grid", "across"):
+    if kind in ("grid", "across", "jittered"):
         n_along = n + 2 if clamp else n + 1
         n_across = max(int(round(width / spacing)), 1) + 1
         a = np.linspace(start, length, n_along)
         b = np.linspace(-width / 2, width / 2, n_across)
-        if kind == "grid":
+        if kind in ("grid", "jittered"):
             uv, faces = _criss_cross(a, b)
         else:
             uv, faces = _criss_cross(b, a)
             uv = uv[:, ::-1].copy()
             faces = faces[:, ::-1].copy()
+        if kind == "jittered":
+            tol = 1e-9 * spacing
+            inner = ((uv[:, 0] > (spacing / 2 if clamp else 0.0) + tol) & (uv[:, 0] < length - tol)
+                     & (np.abs(uv[:, 1]) < width / 2 - tol))
+            rng = np.random.default_rng(seed)
+            r = JITTER * spacing * np.sqrt(rng.uniform(0.0, 1.0, int(inner.sum())))
+            phi = rng.uniform(0.0, 2.0 * np.pi, int(inner.sum()))
+            uv[inner] += r[:, None] * np.stack([np.cos(phi), np.sin(phi)], axis=1)
     else:
         uv, faces = _delaunay_strip(start, length, width, spacing, kind, seed,
                                     spacing / 2 if clamp else None)

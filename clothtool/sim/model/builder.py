@@ -26,6 +26,7 @@ from clothtool.sim.energies.terms import (DihedralBending, Membrane, NodalMembra
                                  QuadraticBending, Stitch, Term)
 
 DEGENERATE = 1e-12  # rest triangle area relative to its squared longest edge
+PLANAR = 1e-9  # a rest shape within this × its extent of a plane is flat (its own pattern)
 
 
 def build_model(config):
@@ -253,7 +254,8 @@ class ModelBuilder:
         if bend_model == "hessian":
             from clothtool.sim.energies.plate import hessian_bending_matrix
 
-            q = hessian_bending_matrix(mesh.uv, faces) * self.tri_bend[0]
+            uv = mesh.uv if mesh.uv is not None else _plane_pattern(mesh.rest3d)
+            q = hessian_bending_matrix(uv, faces, self._per_vertex(self.tri_bend))
             plate = (q.indptr.astype(np.int64), q.indices.astype(np.int64), q.data)
         membrane_model = self._membrane_model()
         terms = _elastic_terms(faces, dr_inv, self.area, self.tri_stretch, self.tri_shear,
@@ -281,7 +283,12 @@ class ModelBuilder:
             # per-panel damping: D = (1/ĥ) Σ β_e K_e, β_e per element
             scaled = self.tri_stretch.copy()
             scaled[:, :2] *= beta[:, None]
-            damped_plate = None if plate is None else (*plate[:2], plate[2] * beta[0])
+            damped_plate = None
+            if plate is not None:  # k_v β_v per vertex, on the plate's own sparsity
+                from clothtool.sim.energies.plate import on_pattern
+
+                damped = hessian_bending_matrix(uv, faces, self._per_vertex(self.tri_bend * beta))
+                damped_plate = (*plate[:2], on_pattern(q, damped))
             damping_terms = _elastic_terms(faces, dr_inv, self.area, scaled,
                                            self.tri_shear * beta, bend_model, damped_plate, n,
                                            hinge, rest_angle,
@@ -312,6 +319,12 @@ class ModelBuilder:
     def _method(self):
         """``solver.method`` (implicit when the builder has no config)."""
         return "implicit" if self.config is None else self.config.solver.method
+
+    def _per_vertex(self, value):
+        """(N,) the area-weighted mean over each vertex's triangles of a per-triangle value."""
+        n, faces = len(self.mesh.positions), self.mesh.faces
+        weight = np.bincount(faces.ravel(), np.repeat(self.area, 3), minlength=n)
+        return np.bincount(faces.ravel(), np.repeat(self.area * value, 3), minlength=n) / weight
 
     def _membrane_model(self):
         """``material.membrane_model``; ``nodal`` (and ``triangle`` when the membrane is off)."""
@@ -353,10 +366,11 @@ class ModelBuilder:
         rest_angle = np.zeros(len(hinge)) if flat else dihedral_angles(mesh.rest3d, hinge)
         weights = None
         model = material.bend_model
-        if model == "hessian" and (mesh.uv is None or np.any(self.tri_bend != self.tri_bend[0])
-                                   or np.any(self.tri_damping != self.tri_damping[0])):
-            # a mesh that rests in its own (curved) shape, a pattern per corner (garment
-            # panels) or panels of their own bend or damping: the dihedral model
+        if model == "hessian" and mesh.uv is None and (mesh.corner_uv is not None
+                                                       or _plane_pattern(mesh.rest3d) is None):
+            # a mesh that rests in its own curved shape or a pattern per corner (garment
+            # panels): the dihedral model (a flat mesh without uv is its own pattern: its
+            # plane's coordinates)
             model = "dihedral"
         if material.bend_model == "quadratic":
             if mesh.uv is None and mesh.corner_uv is not None:
@@ -400,6 +414,16 @@ def _bind(terms, pattern):
             constant = pattern.zeros() if constant is None else constant
             term.constant(pattern, constant)
     return constant
+
+
+def _plane_pattern(rest3d):
+    """(N, 2) coordinates of a rest shape in its own plane, or None when it is not flat
+    (a vertex farther than PLANAR × its extent from the least-squares plane)."""
+    centred = rest3d - rest3d.mean(axis=0)
+    _, sv, vt = np.linalg.svd(centred, full_matrices=False)
+    if sv[2] > PLANAR * sv[0] or np.max(np.abs(centred @ vt[2])) > PLANAR * np.ptp(centred @ vt[0]):
+        return None
+    return np.ascontiguousarray(centred @ vt[:2].T)
 
 
 def _rest_edges(mesh):

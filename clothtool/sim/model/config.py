@@ -164,7 +164,7 @@ class Material(Section):
     shear: float = setting(50.0, non_negative)
     bend: float = setting(1.0e-5, non_negative)
     damping: float = setting(0.01, non_negative)
-    bend_model: str = setting("dihedral", choice(BEND_MODELS))
+    bend_model: str = setting("hessian", choice(BEND_MODELS))
     damping_model: str = setting("strain", choice(DAMPING_MODELS))
     bending_length: float | None = setting(None, positive)
     membrane_model: str = setting("triangle", choice(MEMBRANE_MODELS))
