@@ -12,7 +12,6 @@ from clothtool.io.ply import read_ply, write_ply
 from clothtool.sim.api import simulate
 from clothtool.sim.linalg.blocks import BlockMatrix, ConstraintFilter, block_multiply
 from clothtool.sim.linalg.multigrid import Hierarchy
-from clothtool.sim.linalg.pairs import NO_PAIRS
 from clothtool.sim.linalg.pcg import BlockJacobi, filtered_pcg
 from clothtool.sim.model.config import load_config
 from clothtool.sim.model.methods import make_integrator
@@ -190,8 +189,8 @@ def test_no_penetration_of_a_sphere_or_plane(tmp_path):
                  scene={"colliders": [{"sphere": {"center": [0, -0.4, 0], "radius": 0.3,
                                                   "friction": 0.3}},
                                       {"plane": {"point": [0, -0.8, 0], "normal": [0, 1, 0]}}]},
-                 time={"frames": 25})
-    run(tmp_path, cfg)
+                 time={"frames": 40})  # strain damping leaves the slide over the sphere undamped:
+    run(tmp_path, cfg)                 # at frame 25 it still presses 5.5 % in, at rest 4.7 %
     x = frames(tmp_path / "out")
     faces = x[0].faces
     for f in x:  # no triangle reaches into the sphere (exact triangle–sphere distance)
@@ -305,43 +304,6 @@ def test_filtered_pcg_with_each_preconditioner_matches_a_direct_solve(preconditi
         jacobi_its, _ = filtered_pcg(blocks, b, np.zeros_like(b), constraints, 1e-10, 5000,
                                      BlockJacobi(model.n_vertices))
         assert its < jacobi_its
-
-
-@pytest.mark.parametrize("preconditioner", ["jacobi", "multigrid"])
-def test_filtered_pcg_stops_at_its_error_floor(preconditioner):
-    """With an error floor f, PCG stops at the first iterate whose preconditioned residual
-    rᵀB⁻¹r is at most f (one iteration earlier it was above f), before the residual test;
-    f = 0 changes nothing."""
-    model, blocks, matrix, kind, normal = constrained_system()
-    constraints = ConstraintFilter(kind, normal)
-    pre = (Hierarchy.for_mesh(model.pattern, model.faces) if preconditioner == "multigrid"
-           else BlockJacobi(model.n_vertices))
-    b = np.random.default_rng(6).normal(size=(model.n_vertices, 3))
-    full, _ = filtered_pcg(blocks, b, np.zeros_like(b), constraints, 1e-10, 5000, pre)
-    same, _ = filtered_pcg(blocks, b, np.zeros_like(b), constraints, 1e-10, 5000, pre, NO_PAIRS,
-                           0.0)
-    assert same == full
-    s = filter_matrix(kind, normal)
-
-    def energy_estimate(x):  # rᵀB⁻¹r of the filtered residual
-        r = (s @ (b.ravel() - matrix @ x.ravel())).reshape(-1, 3)
-        z = np.empty_like(r)
-        pre.setup(blocks, constraints)
-        if preconditioner == "multigrid":
-            pre.apply(r, z)
-        else:
-            z = np.einsum("vij,vj->vi", pre.inverse, r)
-        z = (s @ z.ravel()).reshape(-1, 3)
-        return float(np.sum(r * z))
-
-    floor = 1e-4 * energy_estimate(np.zeros_like(b))
-    x = np.zeros_like(b)
-    its, _ = filtered_pcg(blocks, b, x, constraints, 1e-10, 5000, pre, NO_PAIRS, floor)
-    assert 0 < its < full
-    assert energy_estimate(x) <= floor * (1.0 + 1e-9)
-    before = np.zeros_like(b)
-    filtered_pcg(blocks, b, before, constraints, 1e-10, its - 1, pre)
-    assert energy_estimate(before) > floor
 
 
 def test_sliding_constraint_keeps_the_prescribed_normal_motion():

@@ -279,8 +279,9 @@ def test_panels_of_their_own_bend_and_damping_are_bent_as_a_plate():
                                        "material": {"bend": 1e-4, "damping": 0.01}}))
     centre = uniform.mesh.rest3d[uniform.faces].mean(axis=1)
     half = [int(t) for t in np.flatnonzero(centre[:, 1] > np.median(centre[:, 1]))]
-    panels = build_model(load_config({
-        "mesh": {"grid": grid}, "material": {"bend": 1e-4, "damping": 0.01},
+    panels = build_model(load_config({  # frozen: the per-panel damping is β_e K_e (a plate)
+        "mesh": {"grid": grid},
+        "material": {"bend": 1e-4, "damping": 0.01, "damping_model": "frozen"},
         "materials": {"stiff": {"faces": half, "bend": 2e-4, "damping": 0.03}}}))
     assert panels.bend_model == "hessian"
     x = uniform.mesh.rest3d.copy()

@@ -107,8 +107,7 @@ def _precondition(inv, r, kind, normal, constrained, z, mg):
         apply_filter(z, kind, normal)
 
 
-def filtered_pcg(matrix, b, x, constraints, tol, max_iter, preconditioner, extra=NO_PAIRS,
-                 error_floor=0.0):
+def filtered_pcg(matrix, b, x, constraints, tol, max_iter, preconditioner, extra=NO_PAIRS):
     """Solve S(A x − b) = 0 from x, whose constrained components (I − S)x stay as given.
 
     ``matrix``: a :class:`BlockMatrix`; ``constraints``: a :class:`ConstraintFilter`
@@ -116,16 +115,12 @@ def filtered_pcg(matrix, b, x, constraints, tol, max_iter, preconditioner, extra
     :class:`~clothtool.sim.linalg.multigrid.Hierarchy`, set up here for this matrix and filter;
     ``extra``: a pair operator (:mod:`clothtool.sim.linalg.pairs`) whose off-diagonal part is
     applied matrix-free; its diagonal blocks are already in the matrix. Stops when the true relative residual ‖S(b − Ax)‖ / ‖S b‖ ≤ ``tol`` or after
-    ``max_iter`` iterations, or once rᵀB⁻¹r ≤ ``error_floor`` (B the preconditioner): PCG's
-    estimate of the error's energy ‖x − A⁻¹b‖²_A = rᵀA⁻¹r, for a caller whose use of x
-    tolerates an error of that energy (a Newton step's convergence test). Returns
-    (iterations, relative true residual).
+    ``max_iter`` iterations. Returns (iterations, relative true residual).
     """
     preconditioner.setup(matrix, constraints)
     return filtered_pcg_arrays(matrix.pattern.row_ptr, matrix.pattern.col, matrix.values, b, x,
                                constraints.kind, constraints.normal, constraints.active, tol,
-                               max_iter, preconditioner.inverse, preconditioner.arrays, extra,
-                               error_floor)
+                               max_iter, preconditioner.inverse, preconditioner.arrays, extra)
 
 
 @njit(cache=True)
@@ -138,7 +133,7 @@ def _residual_with(row_ptr, col, values, extra, b, x, r):
 
 @njit(cache=True)
 def filtered_pcg_arrays(row_ptr, col, values, b, x, kind, normal, constrained, tol, max_iter,
-                        inv, mg, extra, error_floor=0.0):
+                        inv, mg, extra):
     """:func:`filtered_pcg` on plain arrays: ``constrained`` False skips the filter; ``inv``
     the block-Jacobi inverses (:func:`block_jacobi`) and ``mg`` ``NO_MULTIGRID``, or ``mg``
     the arrays of a multigrid hierarchy after ``setup_levels``; ``extra`` the matrix-free
@@ -162,7 +157,7 @@ def filtered_pcg_arrays(row_ptr, col, values, b, x, kind, normal, constrained, t
     res = np.sqrt(_dot(r, r)) / b_norm
     it = 0
     while it < max_iter:
-        if res <= tol or rz <= error_floor:
+        if res <= tol:
             # confirm on the true residual before stopping
             _residual_with(row_ptr, col, values, extra, b, x, r)
             if constrained:
@@ -171,10 +166,8 @@ def filtered_pcg_arrays(row_ptr, col, values, b, x, kind, normal, constrained, t
             if res <= tol:
                 break
             _precondition(inv, r, kind, normal, constrained, z, mg)
-            rz = _dot(r, z)
-            if rz <= error_floor:
-                break
             p[:] = z
+            rz = _dot(r, z)
         block_multiply(row_ptr, col, values, p, q)
         if extra[3] > 0:
             pairs_offdiagonal_multiply(extra, p, q, 1.0)

@@ -53,7 +53,6 @@ class Term:
     operator = NO_PAIRS
     needs_line_search = False  # every Newton step is line-searched (a barrier)
     starts_at_state = False  # Newton must start at the state's positions (collision-free)
-    exact_solve = False  # its solves are not cut at PCG's error floor (see newton.ERROR_SHARE)
 
     def begin(self, stage):
         pass
@@ -243,7 +242,6 @@ class Contact(Term):
 
     needs_line_search = True
     starts_at_state = True
-    exact_solve = True  # friction's stick stiffness hides velocity errors from the error energy
 
     def __init__(self, contact, mass):
         self.contact, self.mass, self.h = contact, mass, contact.h
