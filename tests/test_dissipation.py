@@ -116,7 +116,7 @@ def test_the_mesh_kernels_sum_the_elements_and_hinges():
     """Triangles (stretch, shear) and hinges (bending, the dihedral kernel with c → βc/ĥ and
     θ̄ → Θ): energy, gradient against central differences, projected Hessian blocks."""
     cfg = load_config({"mesh": {"grid": {"nx": 5, "ny": 4, "plane": "xz"}},
-                       "material": {"damping": 0.02, "stretch": [800.0, 500.0], "shear": 60.0,
+                       "material": {"damping_model": "strain", "damping": 0.02, "stretch": [800.0, 500.0], "shear": 60.0,
                                     "bend": 1e-3}})
     model = build_model(cfg)
     rng = np.random.default_rng(5)
@@ -163,7 +163,8 @@ def test_a_rigid_rotation_feels_no_damping_force():
     """A bent, sheared, stretched sheet turned rigidly (and moved) from its base: Φ and its
     force are zero, for every part (the frozen βK form resists the same motion)."""
     cfg = load_config({"mesh": {"grid": {"nx": 6, "ny": 6, "plane": "xz"}},
-                       "material": {"damping": 0.05, "shear": 80.0, "bend": 1e-3}})
+                       "material": {"damping_model": "strain", "damping": 0.05, "shear": 80.0,
+                                    "bend": 1e-3}})
     model = build_model(cfg)
     rng = np.random.default_rng(11)
     base = model.mesh.positions + rng.normal(0, 0.03, model.mesh.positions.shape)
@@ -188,7 +189,7 @@ def test_bdf2_and_the_second_stage_measure_rates_from_a_combination_of_strains()
     """The base strains are Σ w_i m(x_i) over the past (BDF2: 4/3 and −1/3), not the
     strains of the combined positions."""
     cfg = load_config({"mesh": {"grid": {"nx": 4, "ny": 4, "plane": "xz"}},
-                       "material": {"damping": 0.05, "bend": 1e-3}})
+                       "material": {"damping_model": "strain", "damping": 0.05, "bend": 1e-3}})
     model = build_model(cfg)
     rng = np.random.default_rng(12)
     a = model.mesh.positions + rng.normal(0, 0.03, model.mesh.positions.shape)
@@ -205,14 +206,15 @@ def test_bdf2_and_the_second_stage_measure_rates_from_a_combination_of_strains()
 @pytest.mark.parametrize("substeps", [1, 16])
 def test_a_crumpled_sheet_relaxes_by_frame_8_at_one_step_per_frame(substeps):
     """A 16×16 sheet released from random displacements of up to 0.6 cell (folded and
-    inverted triangles, fibres stretched up to 2.7×), with the default damping (``strain``:
-    stretch, shear and bending): the largest principal stretch is at most 1.1 by frame 8,
+    inverted triangles, fibres stretched up to 2.7×), with ``damping_model: strain`` (stretch,
+    shear and bending): the largest principal stretch is at most 1.1 by frame 8,
     at one step per frame (1.066) as at 16 (with the damping frozen at the start of the
     step, 1.29 at one step per frame)."""
     def crumple(model, state):
         state.x += np.random.default_rng(0).uniform(-0.6, 0.6, state.x.shape) / 15
 
     cfg = load_config({"mesh": {"grid": {"nx": 16, "ny": 16, "plane": "xz"}},
+                       "material": {"damping_model": "strain"},
                        "solver": {"substeps": substeps}, "time": {"fps": 30, "frames": 8}})
     model = build_model(cfg)
     run = run_in_memory(cfg, (0, 8), warmup=False, initial=crumple)
@@ -221,14 +223,13 @@ def test_a_crumpled_sheet_relaxes_by_frame_8_at_one_step_per_frame(substeps):
     assert max_principal_stretch(run.positions[8], model.faces, model.dr_inv) <= 1.1
 
 
-def test_strain_damping_is_the_implicit_methods_default():
+def test_strain_damping_is_the_implicit_methods_alone():
     base = {"mesh": {"grid": {"nx": 4, "ny": 4}}}
-    assert build_model(load_config(base)).strain_damping is not None
-    frozen = {**base, "material": {"damping_model": "frozen"}}
-    assert build_model(load_config(frozen)).strain_damping is None  # frozen βK(x_n)
+    assert build_model(load_config(base)).strain_damping is None  # the default: frozen βK(x_n)
     strain = {**base, "material": {"damping_model": "strain"}}
+    assert build_model(load_config(strain)).strain_damping is not None
     for method in ("explicit", "vbd", "mass-spring"):
-        # the default is no request: these methods damp with their own βK
+        # these methods damp with their own βK
         assert build_model(load_config({**base, "solver": {"method": method}})).strain_damping is None
         with pytest.raises(InputError, match=rf"solver.method: '{method}' does not support "
                                              r"material.damping_model: strain"):

@@ -134,12 +134,13 @@ def test_panel_densities_set_the_lumped_masses(tmp_path):
 def test_panel_damping_is_each_panels_beta_times_its_stiffness(tmp_path):
     """Per-panel damping, frozen D = (1/ĥ) Σ_e β_e K_e: on two separate strips (β 0.01 and
     0.1 s) the β-scaled terms assemble to β times each strip's stiffness blocks, at a deformed
-    state (bending on: the hinges' blocks too); with the strain dissipation (the default),
-    each triangle's and hinge's coefficients carry their strip's β."""
+    state (bending on: the hinges' blocks too); with the strain dissipation
+    (``damping_model: strain``), each triangle's and hinge's coefficients carry their strip's β."""
     from clothtool.sim.energies.energy import FemElastic
 
     path, top = strips_obj(tmp_path)
-    strain = hanging_config(path, top, material={"damping": 0.01, "bend": 1e-3},
+    strain = hanging_config(path, top, material={"damping": 0.01, "bend": 1e-3,
+                                                 "damping_model": "strain"},
                             materials={"right": {"damping": 0.1}})
     model = build_model(load_config(strain))
     tri_beta = model.strain_damping[:, 2] / model.tri_shear

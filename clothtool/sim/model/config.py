@@ -165,7 +165,7 @@ class Material(Section):
     bend: float = setting(1.0e-5, non_negative)
     damping: float = setting(0.01, non_negative)
     bend_model: str = setting("hessian", choice(BEND_MODELS))
-    damping_model: str = setting("strain", choice(DAMPING_MODELS))
+    damping_model: str = setting("frozen", choice(DAMPING_MODELS))
     bending_length: float | None = setting(None, positive)
     membrane_model: str = setting("triangle", choice(MEMBRANE_MODELS))
 

@@ -40,9 +40,7 @@ MATERIALS = "per-panel materials"  # materials: per-triangle stiffness, density 
 SEAMS = "seams"  # mesh.seams: the stitch term and the weld (clothtool.sim.model.seams)
 ATTACH = "attach"  # scene.attach: vertices carried by a collider's surface (moving pins)
 PANEL_DAMPING = "per-panel damping"  # materials.NAME.damping other than material.damping
-# material.damping_model: strain (clothtool.sim.energies.dissipation; the default, refused
-# only when a config sets it: the other methods damp with their frozen βK)
-STRAIN_DAMPING = "strain damping"
+STRAIN_DAMPING = "strain damping"  # material.damping_model: strain (clothtool.sim.energies.dissipation)
 FEATURES = (FRICTION, CONTACT, MOVING_PINS, BDF2, MATERIALS, SEAMS, ATTACH, PANEL_DAMPING,
             STRAIN_DAMPING)
 
@@ -79,9 +77,8 @@ METHODS = {m.name: m for m in (
 
 def requested_features(config, given=()):
     """(feature, config key) for each optional feature a :class:`~clothtool.sim.model.config.Config`
-    asks for; ``given``: the dotted keys the config file sets (a default ``bdf2`` or
-    ``damping_model: strain`` is not a request: the methods without it step by their own
-    first-order scheme and damp with their own βK)."""
+    asks for; ``given``: the dotted keys the config file sets (a default ``bdf2`` is not a
+    request: the methods without it step by their own first-order scheme)."""
     out = []
     if config.solver.integrator == "bdf2" and "solver.integrator" in given:
         out.append((BDF2, "solver.integrator: bdf2"))
@@ -103,7 +100,7 @@ def requested_features(config, given=()):
     for name, panel in config.materials.items():
         if panel.damping is not None and panel.damping != config.material.damping:
             out.append((PANEL_DAMPING, f"materials.{name}.damping"))
-    if config.material.damping_model == "strain" and "material.damping_model" in given:
+    if config.material.damping_model == "strain":
         out.append((STRAIN_DAMPING, "material.damping_model: strain"))
     if config.mesh.seams:
         out.append((SEAMS, "mesh.seams"))
