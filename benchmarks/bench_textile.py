@@ -31,7 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
-from benchmarks.common import markdown_table
+from benchmarks.common import markdown_table, sim_imports
 
 HERE = Path(__file__).resolve().parent.parent
 BASE_COMMIT = "1e6cea5"
@@ -207,9 +207,7 @@ def _plot_drape(shown, path):
 COST_SCRIPT = r"""
 import sys, time, statistics
 sys.path.insert(0, sys.argv[1])
-from clothtool.sim.model.config import load_config
-from clothtool.sim.model.methods import make_integrator
-from clothtool.sim.model.builder import build_model
+IMPORTS
 bend, frames, bend_model = float(sys.argv[2]), int(sys.argv[3]), sys.argv[4]
 overrides = {"mesh.grid.nx": 64, "mesh.grid.ny": 64, "material.bend": bend,
              "material.bend_model": bend_model}
@@ -231,6 +229,11 @@ print(1000 * statistics.median(cpu), newton / frames, cg / frames, model.pattern
 """
 
 
+def cost_script(root):
+    """COST_SCRIPT with the imports of the checkout at ``root``."""
+    return COST_SCRIPT.replace("IMPORTS\n", sim_imports(root))
+
+
 def cost_rows(repeat=3, frames=20):
     if not BASE.exists():
         subprocess.run(["git", "clone", "-q", str(HERE), str(BASE)], check=True)
@@ -240,8 +243,8 @@ def cost_rows(repeat=3, frames=20):
         for label, root, bend_model in (("before (dihedral, 1e6cea5)", BASE, "dihedral"),
                                         ("after (hessian)", HERE, "hessian")):
             for bend in (1e-5, 0.0):
-                out = subprocess.run([sys.executable, "-c", COST_SCRIPT, str(root), str(bend),
-                                      str(frames), bend_model], capture_output=True, text=True,
+                out = subprocess.run([sys.executable, "-c", cost_script(root), str(root),
+                                      str(bend), str(frames), bend_model], capture_output=True, text=True,
                                      check=True,
                                      cwd=root, env={**os.environ, "PYTHONPATH": str(root)})
                 ms, newton, cg, nnzb = out.stdout.split()
@@ -271,7 +274,7 @@ def membrane_cost_rows(repeat=3, frames=20):
     runs = {}
     for _ in range(repeat):
         for membrane in ("triangle", "nodal"):
-            out = subprocess.run([sys.executable, "-c", COST_SCRIPT, str(HERE), "1e-5",
+            out = subprocess.run([sys.executable, "-c", cost_script(HERE), str(HERE), "1e-5",
                                   str(frames), "hessian", membrane], capture_output=True,
                                  text=True, check=True, cwd=HERE,
                                  env={**os.environ, "PYTHONPATH": str(HERE)})

@@ -10,6 +10,34 @@ PYTHON = sys.executable
 BIN = os.path.dirname(sys.executable)
 
 
+# Where a checkout keeps the simulator's entry points (load_config, build_model,
+# make_integrator), newest first: the modules moved, and a benchmark that runs an old
+# commit's code in a clone must import them from where that commit has them.
+SIM_LAYOUTS = (
+    ("clothtool/sim/model/builder.py",  # since the simulator's rooms
+     "from clothtool.sim.model.config import load_config\n"
+     "from clothtool.sim.model.methods import make_integrator\n"
+     "from clothtool.sim.model.builder import build_model\n"),
+    ("clothtool/sim/builder.py",  # one flat sim/ with a builder
+     "from clothtool.sim.config import load_config\n"
+     "from clothtool.sim.methods import make_integrator\n"
+     "from clothtool.sim.builder import build_model\n"),
+    ("clothtool/sim/model.py",  # one flat sim/, the model module building itself (1e6cea5)
+     "from clothtool.sim.config import load_config\n"
+     "from clothtool.sim.methods import make_integrator\n"
+     "from clothtool.sim.model import build_model\n"),
+)
+
+
+def sim_imports(root):
+    """The import lines of ``load_config``, ``make_integrator`` and ``build_model`` for the
+    checkout at ``root``."""
+    for marker, lines in SIM_LAYOUTS:
+        if os.path.exists(os.path.join(root, marker)):
+            return lines
+    raise FileNotFoundError(f"{root}: no known layout of clothtool.sim")
+
+
 def clothtool_cmd(*args):
     return [os.path.join(BIN, "clothtool"), *map(str, args)]
 
