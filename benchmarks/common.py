@@ -7,6 +7,16 @@ import sys
 import time
 
 PYTHON = sys.executable
+# ``python -m benchmarks --full`` (or CLOTHTOOL_BENCH_FULL=1): the long cases too. By default
+# every table keeps its rows' meaning at a lighter scale (coarser references, fewer spacings,
+# a smaller sheet) so that ``make bench`` ends within 20 minutes on 2 cores.
+FULL = os.environ.get("CLOTHTOOL_BENCH_FULL") == "1"
+
+
+def full_or(full, light):
+    """``full`` under ``--full``, else ``light``."""
+    return full if FULL else light
+
 BIN = os.path.dirname(sys.executable)
 
 
