@@ -127,17 +127,16 @@ output: {dir: out/, every: 1}
 """
 
 
-def interrupt_when(proc, ready, signum, waiting_for, timeout=300):
-    """Send ``signum`` to the clothtool process ``proc`` once ``ready()`` holds; check that it
-    exits 130 with the one-line message. Returns (stdout, stderr)."""
+def interrupt_when(proc, ready, signum, waiting_for):
+    """Send ``signum`` to the clothtool process ``proc`` once ``ready()`` holds (no clock: a
+    loaded machine only delays it); check that it exits 130 with the one-line message.
+    Returns (stdout, stderr)."""
     try:
-        deadline = time.monotonic() + timeout
         while not ready():
-            assert proc.poll() is None, proc.communicate()
-            assert time.monotonic() < deadline, f"{waiting_for} never happened"
+            assert proc.poll() is None, (f"ended before {waiting_for}", proc.communicate())
             time.sleep(0.02)
         proc.send_signal(signum)
-        stdout, stderr = proc.communicate(timeout=60)
+        stdout, stderr = proc.communicate()
     finally:
         if proc.poll() is None:
             proc.kill()

@@ -480,16 +480,14 @@ def _group_alive(pgid):
     return True
 
 
-@pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="needs Linux /proc")
-def _wait_for_frame(proc, path, timeout=300):
-    """Wait until the sweep ``proc`` has written ``path``; fail if it ends or times out first."""
-    deadline = time.monotonic() + timeout
+def _wait_for_frame(proc, path):
+    """Wait until the sweep ``proc`` has written ``path``; fail if it ends first."""
     while not path.exists():
         assert proc.poll() is None, proc.communicate()
-        assert time.monotonic() < deadline
         time.sleep(0.01)
 
 
+@pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="needs Linux /proc")
 def test_a_pool_process_that_dies_stops_its_workers_and_the_rerun_resumes(tmp_path):
     """SIGKILL to the pool process in the middle of the runs: its workers are stopped (their
     runs left not done, no temporary file), the sweep says so in one line (exit code 1), and
@@ -503,7 +501,7 @@ def test_a_pool_process_that_dies_stops_its_workers_and_the_rerun_resumes(tmp_pa
         _wait_for_frame(proc, runs / "run_0000" / "frame_00010.ply")
         pool, = _pool_processes(proc.pid)
         os.kill(pool, signal.SIGKILL)
-        stdout, stderr = proc.communicate(timeout=120)
+        stdout, stderr = proc.communicate()
     finally:
         if proc.poll() is None:
             proc.kill()
@@ -536,7 +534,7 @@ def test_a_worker_that_dies_fails_its_run_only(tmp_path):
         victim = next(pid for pid in _descendants(proc.pid)
                       if any(str(runs / "run_0000") in path for path in _open_files(pid)))
         os.kill(victim, signal.SIGKILL)
-        stdout, stderr = proc.communicate(timeout=600)
+        stdout, stderr = proc.communicate()
     finally:
         if proc.poll() is None:
             proc.kill()
