@@ -2,7 +2,7 @@
 and ascii) mutated anywhere, truncated, or replaced by random bytes. Every outcome is a
 consistent TetMesh or an InputError naming the file, never another exception or a hang."""
 
-import tracemalloc
+import time
 
 import numpy as np
 import pytest
@@ -111,10 +111,6 @@ def test_a_huge_gmsh_node_tag_fails_at_once(folder, seeds):
     tag = f"\n{len(X)}\n".encode()  # the last node tag of the single node block
     last = text.index(tag, start)
     mutant = text[:last] + b"\n3000000000\n" + text[last + len(tag):]
-    tracemalloc.start()
-    try:
-        assert outcome(folder, "msh41_ascii", mutant, seeds) is None
-        peak = tracemalloc.get_traced_memory()[1]
-    finally:
-        tracemalloc.stop()
-    assert peak < 64 << 20, peak  # the table is never allocated
+    started = time.process_time()  # CPU time: a loaded machine does not slow it
+    assert outcome(folder, "msh41_ascii", mutant, seeds) is None
+    assert time.process_time() - started < 5
