@@ -28,7 +28,7 @@ import time
 
 import numpy as np
 
-from benchmarks.common import full_or, markdown_table
+from benchmarks.common import full_or, markdown_table, pyplot
 
 FRAMES = 15  # 0.5 s at 30 fps
 EARLY = 6  # 0.2 s: the orders there too
@@ -178,12 +178,8 @@ def start_rows():
 
 
 def plot(curves, path):
-    try:
-        import matplotlib
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-    except ImportError:
-        print("  matplotlib not installed: no plot (pip install 'clothtool[bench]')")
+    plt = pyplot()
+    if plt is None:
         return False
     fig, axes = plt.subplots(1, 2, figsize=(11, 4.5), sharey=True)
     t = np.arange(FRAMES + 1) / 30.0

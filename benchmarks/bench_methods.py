@@ -44,7 +44,7 @@ import time
 import numpy as np
 import yaml
 
-from benchmarks.common import full_or, markdown_table, write_csv
+from benchmarks.common import full_or, markdown_table, pyplot, write_csv
 from clothtool.sim.solvers.compare import run_in_memory
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
@@ -249,12 +249,8 @@ def orders(rows):
 
 
 def plot(rows, path, title):
-    try:
-        import matplotlib
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-    except ImportError:
-        print("  matplotlib not installed: no plot (pip install 'clothtool[bench]')")
+    plt = pyplot()
+    if plt is None:
         return False
     fig, ax = plt.subplots(figsize=(8, 5.5))
     labels = list(dict.fromkeys(r["method"] for r in rows))

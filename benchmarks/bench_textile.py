@@ -31,7 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
-from benchmarks.common import full_or, markdown_table, sim_imports
+from benchmarks.common import full_or, markdown_table, pyplot, sim_imports
 
 HERE = Path(__file__).resolve().parent.parent
 BASE_COMMIT = "1e6cea5"
@@ -184,12 +184,8 @@ def drape_rows(out_dir):
 
 
 def _plot_drape(shown, path):
-    try:
-        import matplotlib
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-    except ImportError:
-        print("  matplotlib not installed: no drape picture (pip install 'clothtool[bench]')")
+    plt = pyplot("drape picture")
+    if plt is None:
         return
     fig = plt.figure(figsize=(12, 8.4))
     for k, ((membrane, kind), (x, faces, dc)) in enumerate(shown.items()):

@@ -77,6 +77,19 @@ def peak_rss_mb(cmd):
     return int(out.stdout.strip().splitlines()[-1]) / 1024.0
 
 
+def pyplot(what="plot"):
+    """matplotlib's pyplot on the Agg backend, or None (saying there is no ``what``) when
+    matplotlib is not installed."""
+    try:
+        import matplotlib
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError:
+        print(f"  matplotlib not installed: no {what} (pip install 'clothtool[bench]')")
+        return None
+    return plt
+
+
 def markdown_table(rows, columns):
     """rows: list of dicts → a Markdown table with the given columns."""
     def fmt(v):

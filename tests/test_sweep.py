@@ -8,12 +8,12 @@ import os
 import signal
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
 import pytest
 from click.testing import CliRunner
+from conftest import running, wait_until
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -332,27 +332,15 @@ def test_ctrl_c_then_rerun_completes_only_the_missing_runs(tmp_path):
     base = write_base(tmp_path, BASE.replace("nx: 6, ny: 6", "nx: 10, ny: 10")
                       .replace("frames: 6", "frames: 40"))
     runs, whole = tmp_path / "runs", tmp_path / "whole"
-    # as from a terminal: Ctrl-C not ignored (a suite run as a background job inherits SIG_IGN)
-    proc = subprocess.Popen([*CLOTHTOOL, "sweep", str(base), "-o", str(runs), *GRID_12, "-j", "2"],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, start_new_session=True,
-                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
-    try:
-        while len(list(runs.glob("run_*/status.json"))) < 3:
-            assert proc.poll() is None, proc.communicate()
-            time.sleep(0.01)
+    with running([*CLOTHTOOL, "sweep", base, "-o", runs, *GRID_12, "-j", "2"], group=True) as proc:
+        wait_until(proc, lambda: len(list(runs.glob("run_*/status.json"))) >= 3, "3 runs done")
         pool, = _pool_processes(proc.pid)  # the leader of its own process group
         os.killpg(pool, signal.SIGSTOP)
         frozen = {p.parent.name for p in runs.glob("run_*/status.json")}
         os.killpg(proc.pid, signal.SIGINT)
-        while not _signal_pending(pool, signal.SIGTERM):
-            assert proc.poll() is None, proc.communicate()
-            time.sleep(0.01)
+        wait_until(proc, lambda: _signal_pending(pool, signal.SIGTERM), "the pool's SIGTERM")
         os.killpg(pool, signal.SIGCONT)
         _, stderr = proc.communicate()
-    finally:
-        if proc.poll() is None:
-            os.killpg(proc.pid, signal.SIGKILL)
-            proc.wait()
     assert proc.returncode == 130 and stderr.decode() == "clothtool: interrupted\n"
     assert not [p for p in runs.rglob("*") if ".tmp-" in p.name]
     manifest = {r["run"]: r["status"] for r in read_csv(runs / "manifest.csv")}
@@ -480,13 +468,6 @@ def _group_alive(pgid):
     return True
 
 
-def _wait_for_frame(proc, path):
-    """Wait until the sweep ``proc`` has written ``path``; fail if it ends first."""
-    while not path.exists():
-        assert proc.poll() is None, proc.communicate()
-        time.sleep(0.01)
-
-
 @pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="needs Linux /proc")
 def test_a_pool_process_that_dies_stops_its_workers_and_the_rerun_resumes(tmp_path):
     """SIGKILL to the pool process in the middle of the runs: its workers are stopped (their
@@ -496,16 +477,11 @@ def test_a_pool_process_that_dies_stops_its_workers_and_the_rerun_resumes(tmp_pa
     runs = tmp_path / "runs"
     args = [*CLOTHTOOL, "sweep", str(base), "-o", str(runs), "-j", "2",
             "--grid", "material.stretch=1e3,2e3,3e3,4e3"]
-    proc = subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
-    try:
-        _wait_for_frame(proc, runs / "run_0000" / "frame_00010.ply")
+    with running(args) as proc:
+        wait_until(proc, (runs / "run_0000" / "frame_00010.ply").exists, "frame 10 written")
         pool, = _pool_processes(proc.pid)
         os.kill(pool, signal.SIGKILL)
         stdout, stderr = proc.communicate()
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.wait()
     assert proc.returncode == 1, stderr
     assert stderr.decode() == (
         "clothtool: error: the process that runs the sweep's workers died (killed by signal "
@@ -525,20 +501,14 @@ def test_a_worker_that_dies_fails_its_run_only(tmp_path):
     a new worker takes the rest, every other run is done."""
     base = write_base(tmp_path, BASE.replace("frames: 6", "frames: 400"))
     runs = tmp_path / "runs"
-    proc = subprocess.Popen([*CLOTHTOOL, "sweep", str(base), "-o", str(runs), "-j", "2",
-                             "--grid", "material.stretch=1e3,2e3,3e3,4e3"],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE)
-    try:
-        _wait_for_frame(proc, runs / "run_0000" / "frame_00010.ply")
+    with running([*CLOTHTOOL, "sweep", base, "-o", runs, "-j", "2",
+                  "--grid", "material.stretch=1e3,2e3,3e3,4e3"]) as proc:
+        wait_until(proc, (runs / "run_0000" / "frame_00010.ply").exists, "frame 10 written")
         # the worker running run_0000: the one with a file of its folder open (stats.csv)
         victim = next(pid for pid in _descendants(proc.pid)
                       if any(str(runs / "run_0000") in path for path in _open_files(pid)))
         os.kill(victim, signal.SIGKILL)
         stdout, stderr = proc.communicate()
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.wait()
     assert proc.returncode == 3, stderr
     manifest = {r["run"]: r for r in read_csv(runs / "manifest.csv")}
     assert manifest["run_0000"]["status"] == "failed"
