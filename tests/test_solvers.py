@@ -196,7 +196,7 @@ def test_spring_hessian_is_psd_and_matches_the_gradient():
     from clothtool.sim.energies.springs import spring_energy
     eps = 1e-6
     fd = np.zeros_like(x)
-    for v in range(n):
+    for v in range(model.n_vertices):
         for p in range(3):
             xp, xm = x.copy(), x.copy()
             xp[v, p] += eps
