@@ -6,15 +6,20 @@
     python -m benchmarks tet             # tetrahedra: kernel vs numpy SVD, readers, 200k × 50 frames
     python -m benchmarks sweep           # clothtool sweep's overhead against N/jobs × one run
     python -m benchmarks textile         # cantilever, hanging strip, drape; what bending costs
+    python -m benchmarks --full [NAMES]  # the long cases too (benchmarks/common.py: FULL)
 """
 
 import importlib
+import os
 import pathlib
 import sys
 import time
 
 
 def main(argv):
+    if "--full" in argv:
+        argv = [a for a in argv if a != "--full"]
+        os.environ["CLOTHTOOL_BENCH_FULL"] = "1"  # before the modules read it (and for children)
     out_dir = pathlib.Path("bench-results")
     out_dir.mkdir(exist_ok=True)
     here = pathlib.Path(__file__).parent

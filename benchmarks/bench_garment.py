@@ -32,6 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from benchmarks.common import markdown_table, write_csv
+from clothtool.geometry import grid_triangles, grid_uv
 from clothtool.io.obj_writer import write_obj
 
 FPS, FRAMES = 30, 60
@@ -40,15 +41,8 @@ DEPTH, RADIUS, SPEED = 0.12, 0.08, 0.5
 
 
 def panel(nx, ny, width, height):
-    i, j = np.meshgrid(np.arange(nx), np.arange(ny))
-    uv = np.stack([i.ravel() * width / (nx - 1), j.ravel() * height / (ny - 1)], axis=1)
-    faces = []
-    for b in range(ny - 1):
-        for a in range(nx - 1):
-            v = b * nx + a
-            faces += [(v, v + 1, v + nx + 1), (v, v + nx + 1, v + nx)] if (a + b) % 2 else \
-                [(v, v + 1, v + nx), (v + 1, v + nx + 1, v + nx)]
-    return uv, np.array(faces, np.int64)
+    """(uv, faces) of a criss-cross grid panel of ``width`` × ``height`` m from the origin."""
+    return grid_uv(nx, ny, width, height) + [width / 2, height / 2], grid_triangles(nx, ny)
 
 
 def garment(folder):

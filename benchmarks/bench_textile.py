@@ -12,9 +12,9 @@ Writes ``bench-results/textile.md`` and ``textile_drape.png``:
 - hanging strips along warp, weft and bias against ρgL²/(2k) (k along the bias from
   :func:`clothtool.sim.textile.bias_modulus`), with each membrane model;
 - Cusick drape (BS 5058: a 30 cm disc on an 18 cm pedestal): the drape coefficient on a
-  grid, the grid turned 45° and a Delaunay mesh at two spacings, with each membrane model,
-  simulated to rest with the implicit method (a 6-fold ripple of 2 mm seeds the folds alike
-  on every mesh);
+  grid, the grid turned 45° and a Delaunay mesh at 10 mm (and 7.5 mm under ``--full``),
+  with each membrane model, simulated to rest with the implicit method (a 6-fold ripple
+  of 2 mm seeds the folds alike on every mesh);
 - the membrane models' cost: ms/step of the 64×64 hanging sheet, alternating in one run;
 - cost: the 64×64 hanging sheet (sample_data/hanging_sheet.yaml) at one step per frame, CPU
   ms per step with bending and with ``bend: 0``, in this checkout and in a clone of the
@@ -32,13 +32,14 @@ from pathlib import Path
 
 import numpy as np
 
-from benchmarks.common import markdown_table
+from benchmarks.common import full_or, markdown_table, pyplot, sim_imports
 
 HERE = Path(__file__).resolve().parent.parent
 BASE_COMMIT = "1e6cea5"
 BASE = Path(os.environ.get("CLOTHTOOL_BASE", f"/tmp/base-{os.getpid()}"))
 G = 9.81
 DEFAULT_BEND, DEFAULT_MEMBRANE = "hessian", "triangle"  # material.bend_model, membrane_model
+DRAPE_SPACINGS = full_or((0.01, 0.0075), (0.01,))  # m; the picture shows the finest
 
 
 def cantilever_rows():
@@ -160,7 +161,7 @@ def drape_rows(out_dir):
     drape("grid", 0.02, bend_model="hessian", membrane_model="nodal")  # compile the kernels
     drape("grid", 0.02, bend_model="hessian")
     for membrane in ("triangle", "nodal"):
-        for spacing in (0.01, 0.0075):
+        for spacing in DRAPE_SPACINGS:
             for kind in ("grid", "rot45", "delaunay"):
                 x, faces, dc, folds, wall, speed = drape(kind, spacing, bend_model="hessian",
                                                          membrane_model=membrane)
@@ -169,31 +170,28 @@ def drape_rows(out_dir):
                              "folds": folds, "largest speed at the end mm/s": f"{1000 * speed:.2f}",
                              "wall s": f"{wall:.1f}"})
                 print("  drape", rows[-1], flush=True)
-                if spacing == 0.0075:
+                if spacing == DRAPE_SPACINGS[-1]:
                     shown[(membrane, kind)] = (x, faces, dc)
     for membrane in ("triangle", "nodal"):
         mine = [r for r in rows if r.get("membrane") == membrane and "vertices" in r]
-        for spacing in (0.01, 0.0075):
+        for spacing in DRAPE_SPACINGS:
             values = [float(r["drape coefficient"]) for r in mine
                       if r["spacing mm"] == spacing * 1000]
             spread = 100 * (max(values) - min(values)) / np.mean(values)
             rows.append({"membrane": membrane, "mesh": "spread (max − min)/mean",
                          "spacing mm": spacing * 1000, "drape coefficient": f"{spread:.2f} %"})
-        for kind in ("grid", "rot45", "delaunay"):
+        for kind in ("grid", "rot45", "delaunay") if len(DRAPE_SPACINGS) > 1 else ():
             values = [float(r["drape coefficient"]) for r in mine if r["mesh"] == kind]
-            rows.append({"membrane": membrane, "mesh": f"{kind}: 10 → 7.5 mm",
+            a, b = (1000 * s for s in DRAPE_SPACINGS)
+            rows.append({"membrane": membrane, "mesh": f"{kind}: {a:g} → {b:g} mm",
                          "drape coefficient": f"{100 * (values[1] / values[0] - 1):+.2f} %"})
     _plot_drape(shown, out_dir / "textile_drape.png")
     return rows
 
 
 def _plot_drape(shown, path):
-    try:
-        import matplotlib
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-    except ImportError:
-        print("  matplotlib not installed: no drape picture (pip install 'clothtool[bench]')")
+    plt = pyplot("drape picture")
+    if plt is None:
         return
     fig = plt.figure(figsize=(12, 8.4))
     for k, ((membrane, kind), (x, faces, dc)) in enumerate(shown.items()):
@@ -204,7 +202,8 @@ def _plot_drape(shown, path):
         ax.set_box_aspect((1, 1, 0.5))
         ax.view_init(elev=35, azim=30)
         ax.set_axis_off()
-    fig.suptitle("Cusick drape, 30 cm disc on an 18 cm pedestal, c = 3 cm, 7.5 mm spacing")
+    fig.suptitle("Cusick drape, 30 cm disc on an 18 cm pedestal, c = 3 cm, "
+                 f"{1000 * DRAPE_SPACINGS[-1]:g} mm spacing")
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
@@ -213,9 +212,7 @@ def _plot_drape(shown, path):
 COST_SCRIPT = r"""
 import sys, time, statistics
 sys.path.insert(0, sys.argv[1])
-from clothtool.sim.model.config import load_config
-from clothtool.sim.model.methods import make_integrator
-from clothtool.sim.model.builder import build_model
+IMPORTS
 bend, frames, bend_model = float(sys.argv[2]), int(sys.argv[3]), sys.argv[4]
 overrides = {"mesh.grid.nx": 64, "mesh.grid.ny": 64, "material.bend": bend,
              "material.bend_model": bend_model}
@@ -237,6 +234,11 @@ print(1000 * statistics.median(cpu), newton / frames, cg / frames, model.pattern
 """
 
 
+def cost_script(root):
+    """COST_SCRIPT with the imports of the checkout at ``root``."""
+    return COST_SCRIPT.replace("IMPORTS\n", sim_imports(root))
+
+
 def cost_rows(repeat=3, frames=20):
     if not BASE.exists():
         subprocess.run(["git", "clone", "-q", str(HERE), str(BASE)], check=True)
@@ -246,8 +248,8 @@ def cost_rows(repeat=3, frames=20):
         for label, root, bend_model in (("before (dihedral, 1e6cea5)", BASE, "dihedral"),
                                         ("after (hessian)", HERE, "hessian")):
             for bend in (1e-5, 0.0):
-                out = subprocess.run([sys.executable, "-c", COST_SCRIPT, str(root), str(bend),
-                                      str(frames), bend_model], capture_output=True, text=True,
+                out = subprocess.run([sys.executable, "-c", cost_script(root), str(root),
+                                      str(bend), str(frames), bend_model], capture_output=True, text=True,
                                      check=True,
                                      cwd=root, env={**os.environ, "PYTHONPATH": str(root)})
                 ms, newton, cg, nnzb = out.stdout.split()
@@ -277,7 +279,7 @@ def membrane_cost_rows(repeat=3, frames=20):
     runs = {}
     for _ in range(repeat):
         for membrane in ("triangle", "nodal"):
-            out = subprocess.run([sys.executable, "-c", COST_SCRIPT, str(HERE), "1e-5",
+            out = subprocess.run([sys.executable, "-c", cost_script(HERE), str(HERE), "1e-5",
                                   str(frames), "hessian", membrane], capture_output=True,
                                  text=True, check=True, cwd=HERE,
                                  env={**os.environ, "PYTHONPATH": str(HERE)})

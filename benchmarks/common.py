@@ -7,7 +7,45 @@ import sys
 import time
 
 PYTHON = sys.executable
+# ``python -m benchmarks --full`` (or CLOTHTOOL_BENCH_FULL=1): the long cases too. By default
+# every table keeps its rows' meaning at a lighter scale (coarser references, fewer spacings)
+# so that ``make bench`` fits in 20 minutes on 2 cores (the goal; not yet timed whole).
+FULL = os.environ.get("CLOTHTOOL_BENCH_FULL") == "1"
+
+
+def full_or(full, light):
+    """``full`` under ``--full``, else ``light``."""
+    return full if FULL else light
+
 BIN = os.path.dirname(sys.executable)
+
+
+# Where a checkout keeps the simulator's entry points (load_config, build_model,
+# make_integrator), newest first: the modules moved, and a benchmark that runs an old
+# commit's code in a clone must import them from where that commit has them.
+SIM_LAYOUTS = (
+    ("clothtool/sim/model/builder.py",  # since the simulator's rooms
+     "from clothtool.sim.model.config import load_config\n"
+     "from clothtool.sim.model.methods import make_integrator\n"
+     "from clothtool.sim.model.builder import build_model\n"),
+    ("clothtool/sim/builder.py",  # one flat sim/ with a builder
+     "from clothtool.sim.config import load_config\n"
+     "from clothtool.sim.methods import make_integrator\n"
+     "from clothtool.sim.builder import build_model\n"),
+    ("clothtool/sim/model.py",  # one flat sim/, the model module building itself (1e6cea5)
+     "from clothtool.sim.config import load_config\n"
+     "from clothtool.sim.methods import make_integrator\n"
+     "from clothtool.sim.model import build_model\n"),
+)
+
+
+def sim_imports(root):
+    """The import lines of ``load_config``, ``make_integrator`` and ``build_model`` for the
+    checkout at ``root``."""
+    for marker, lines in SIM_LAYOUTS:
+        if os.path.exists(os.path.join(root, marker)):
+            return lines
+    raise FileNotFoundError(f"{root}: no known layout of clothtool.sim")
 
 
 def clothtool_cmd(*args):
@@ -37,6 +75,19 @@ def peak_rss_mb(cmd):
             "print(resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss)")
     out = subprocess.run([PYTHON, "-c", code, *cmd], check=True, capture_output=True, text=True)
     return int(out.stdout.strip().splitlines()[-1]) / 1024.0
+
+
+def pyplot(what="plot"):
+    """matplotlib's pyplot on the Agg backend, or None (saying there is no ``what``) when
+    matplotlib is not installed."""
+    try:
+        import matplotlib
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError:
+        print(f"  matplotlib not installed: no {what} (pip install 'clothtool[bench]')")
+        return None
+    return plt
 
 
 def markdown_table(rows, columns):

@@ -92,27 +92,33 @@ REGISTRY = (
           "deformed configuration (R·vk = F·vk/λk), row k for λk, sign free",
           needs=("principal",), extended=True),
     # The 3D variant (analyze --kabsch): clothtool.analysis.variant3d.
-    Field("rotation", "vertex", (3, 3), "kabsch", "Kabsch rotation of the vertex's one-ring"),
-    Field("angle", "vertex", (), "kabsch", "angle of that rotation (rad)"),
-    Field("residual", "vertex", (), "kabsch", "misfit of that rotation (least-squares "
-          "residual of the ring)"),
+    Field("rotation", "vertex", (3, 3), "kabsch", "Kabsch rotation R of the vertex's one-ring, "
+          "a proper rotation, det R = +1"),
+    Field("angle", "vertex", (), "kabsch", "rotation angle of R, radians in [0, π]"),
+    Field("residual", "vertex", (), "kabsch", "√(mean ‖R p − q‖²) over the ring, in length "
+          "units: the part of the motion no rotation explains (stretch plus bending)"),
     Field("flags", "vertex", (), "kabsch", "bit 0 reference ring degenerate, bit 1 deformed "
-          "ring degenerate, bit 2 non-finite, bit 3 rotation not unique", integer=True),
-    Field("F3", "face", (3, 3), "face3d", "3×3 deformation gradient (edges and normal)"),
-    Field("R3", "face", (3, 3), "face3d", "rotation of F3 = R3·U3"),
-    Field("U3", "face", (3, 3), "face3d", "stretch of F3 = R3·U3"),
-    Field("stretch3", "face", (3,), "face3d", "eigenvalues of U3, descending"),
-    Field("directions3", "face", (3, 3), "face3d", "eigenvectors of U3, row k for stretch3[k]"),
-    Field("dihedral_change", "edge", (), "dihedral", "change of the signed dihedral angle of "
-          "each interior edge (rad)"),
-    Field("flags", "edge", (), "dihedral", "bit 0 / bit 1 a triangle of the edge degenerate in "
-          "the reference / deformed frame, bit 2 non-finite",
-          integer=True),
+          "ring degenerate, bit 2 non-finite input, bit 3 rotation ambiguous; where any bit is "
+          "set the three fields above are NaN", integer=True),
+    Field("F3", "face", (3, 3), "face3d", "F3 = [e1′ e2′ n′] [e1 e2 n]⁻¹, the full-rank "
+          "deformation gradient that also maps the reference unit normal to the deformed one"),
+    Field("R3", "face", (3, 3), "face3d", "rotation of the polar split F3 = R3·U3, proper"),
+    Field("U3", "face", (3, 3), "face3d", "stretch of the polar split F3 = R3·U3, symmetric "
+          "positive definite, in the reference configuration"),
+    Field("stretch3", "face", (3,), "face3d", "the eigenvalues of U3, descending"),
+    Field("directions3", "face", (3, 3), "face3d", "the unit eigenvectors of U3 as rows, row k "
+          "belongs to stretch3[k], in the reference configuration (sign free)"),
+    Field("dihedral_change", "edge", (), "dihedral", "θ_deformed − θ_reference per interior "
+          "edge, radians, wrapped to (−π, π]"),
+    Field("flags", "edge", (), "dihedral", "bit 0/1 a triangle of the edge is degenerate in the "
+          "reference/deformed frame, bit 2 non-finite; then the change is NaN", integer=True),
     # Tetrahedral sequences: clothtool.analysis.tet.
     Field("F", "tet", (3, 3), "tet", "G·D_r⁻¹, D = [p1 − p4, p2 − p4, p3 − p4]"),
     Field("C", "tet", (3, 3), "tet", "FᵀF, right Cauchy–Green", needs=("C",)),
-    Field("U", "tet", (3, 3), "tet", "stretch of the polar split F = R·U, symmetric (one "
-          "negative eigenvalue if inverted)", needs=("polar",)),
+    Field("U", "tet", (3, 3), "tet", "stretch of the polar split F = R·U, symmetric; one "
+          "negative eigenvalue for an inverted tetrahedron (Irving, Teran & Fedkiw 2004, "
+          "\"Invertible finite elements for robust simulation of large deformation\")",
+          needs=("polar",)),
     Field("R", "tet", (3, 3), "tet", "rotation of the polar split F = R·U, always proper "
           "(det R = +1)", needs=("polar",)),
     Field("strain", "tet", (3, 3), "tet", "Green–Lagrange E = (C − I)/2", needs=("C",)),
@@ -120,7 +126,8 @@ REGISTRY = (
           "λ3 < 0 if inverted)", needs=("polar",), summary=("lambda1", "lambda2", "lambda3")),
     Field("directions", "tet", (3, 3), "tet", "unit principal directions in the reference "
           "configuration, row k for λk, sign free", needs=("polar",)),
-    Field("volume_ratio", "tet", (), "tet", "J = det F = deformed volume / reference volume",
+    Field("volume_ratio", "tet", (), "tet", "J = det F = deformed volume / reference volume "
+          "(negative when inverted)",
           summary=("volume_ratio",)),
     Field("flags", "tet", (), "tet", "bit 0 reference degenerate, bit 1 deformed degenerate, "
           "bit 2 non-finite input, bit 4 (16) inverted", integer=True, summary=("flags",)),

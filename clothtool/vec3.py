@@ -42,6 +42,16 @@ JACOBI_SWEEPS = 12  # cyclic Jacobi sweeps at most (3×3 converges quadratically
 
 
 @njit(cache=True)
+def copy_into(a, out):
+    """out[:, :] = a for 2-D arrays of one shape, element by element: a slice assignment
+    compiles numba's shape-mismatch message (string formatting, about 5 s of CPU in a fresh
+    install's first run)."""
+    for i in range(a.shape[0]):
+        for j in range(a.shape[1]):
+            out[i, j] = a[i, j]
+
+
+@njit(cache=True)
 def spd_inverse3(a, floor, out):
     """out = an inverse of the symmetric positive semi-definite 3×3 matrix a + (its rounding),
     with every eigenvalue taken as at least ``floor`` (> 0: a known lower bound of the true

@@ -1,5 +1,9 @@
 """Shared builders for the tests: meshes with known geometry, made here (no external data)."""
 
+import contextlib
+import os
+import signal
+import subprocess
 import time
 
 import numpy as np
@@ -127,21 +131,40 @@ output: {dir: out/, every: 1}
 """
 
 
-def interrupt_when(proc, ready, signum, waiting_for, timeout=300):
-    """Send ``signum`` to the clothtool process ``proc`` once ``ready()`` holds; check that it
-    exits 130 with the one-line message. Returns (stdout, stderr)."""
+@contextlib.contextmanager
+def running(args, group=False):
+    """The process ``args`` (stdout and stderr piped; Ctrl-C at its default, as from a terminal,
+    even when the suite runs as a background job that ignores it), killed if it still runs at
+    the end, its whole process group when ``group`` (a session of its own)."""
+    proc = subprocess.Popen(list(map(str, args)), stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            start_new_session=group,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     try:
-        deadline = time.monotonic() + timeout
-        while not ready():
-            assert proc.poll() is None, proc.communicate()
-            assert time.monotonic() < deadline, f"{waiting_for} never happened"
-            time.sleep(0.02)
-        proc.send_signal(signum)
-        stdout, stderr = proc.communicate(timeout=60)
+        yield proc
     finally:
         if proc.poll() is None:
-            proc.kill()
+            if group:
+                os.killpg(proc.pid, signal.SIGKILL)
+            else:
+                proc.kill()
             proc.wait()
+
+
+def wait_until(proc, ready, waiting_for):
+    """Wait until ``ready()`` holds (no clock: a loaded machine only delays it); fail if the
+    process ``proc`` ends first."""
+    while not ready():
+        assert proc.poll() is None, (f"ended before {waiting_for}", proc.communicate())
+        time.sleep(0.01)
+
+
+def interrupt_when(args, ready, signum, waiting_for):
+    """Run the clothtool command ``args``, send it ``signum`` once ``ready()`` holds; check that
+    it exits 130 with the one-line message. Returns (stdout, stderr)."""
+    with running(args) as proc:
+        wait_until(proc, ready, waiting_for)
+        proc.send_signal(signum)
+        stdout, stderr = proc.communicate()
     assert proc.returncode == 130, stderr
     assert stderr.decode() == "clothtool: interrupted\n"
     return stdout, stderr
@@ -155,3 +178,26 @@ def dense_operator(rows, weights, blocks, count, n_vertices):
             for j in range(4):
                 h[rows[k, i], :, rows[k, j], :] += weights[k, i] * weights[k, j] * blocks[k]
     return h.reshape(3 * n_vertices, 3 * n_vertices)
+
+
+def assemble(x, stencils, geo, kappa=1.0):
+    """contact_assemble with fresh arrays: (energy, grad, pair data, smallest gap)."""
+    from clothtool.contact.barrier import contact_assemble
+
+    k = len(stencils)
+    grad = np.zeros_like(x)
+    act, w, nrm, coef = np.zeros(k, np.int64), np.zeros((k, 4)), np.zeros((k, 3)), np.zeros(k)
+    force, tilt = np.zeros(k), np.zeros((k, 2, 4))
+    e, n_act, gap = contact_assemble(x, stencils, geo, kappa, grad, act, w, nrm, coef, force, tilt)
+    return e, grad, (act, n_act, w, nrm, coef, force, tilt), gap
+
+
+def hessian_entries(x, stencils, pairs):
+    """The pair-operator entries (rows, weights, blocks, count) of assembled pair data."""
+    from clothtool.contact.barrier import barrier_blocks
+
+    act, n_act, w, nrm, coef, force, tilt = pairs
+    room = 3 * max(n_act, 1)
+    rows, w_out, blocks = np.zeros((room, 4), np.int64), np.zeros((room, 4)), np.zeros((room, 3, 3))
+    count = barrier_blocks(stencils, act, n_act, w, nrm, coef, force, tilt, x, rows, w_out, blocks)
+    return rows, w_out, blocks, count

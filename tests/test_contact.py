@@ -7,11 +7,11 @@ normalised barrier potential, its CCD and its ``has_intersections``.
 import ipctk
 import numpy as np
 import pytest
-from conftest import dense_operator
+from conftest import assemble, dense_operator, hessian_entries
 
 from clothtool.contact.barrier import (EDGE_EDGE, POINT_PLANE, POINT_TRIANGLE, barrier,
-                                       barrier_blocks, barrier_first, barrier_second,
-                                       contact_assemble, contact_energy, mollifier, pair_geometry)
+                                       barrier_first, barrier_second, contact_energy, mollifier,
+                                       pair_geometry)
 from clothtool.contact.broadphase import contact_stencils as _contact_stencils
 from clothtool.contact.broadphase import mesh_edges
 from clothtool.contact.ccd import additive_ccd, collision_free_step
@@ -132,25 +132,6 @@ def two_elements(rng, kind, gap):
     x += 0.2 * gap * rng.normal(size=x.shape)
     q, _ = np.linalg.qr(rng.normal(size=(3, 3)))
     return x @ q.T, faces, edges
-
-
-def assemble(x, stencils, geo, kappa):
-    """contact_assemble with fresh arrays: (energy, grad, pair data, smallest gap)."""
-    k = len(stencils)
-    grad = np.zeros_like(x)
-    act, w, nrm, coef = np.zeros(k, np.int64), np.zeros((k, 4)), np.zeros((k, 3)), np.zeros(k)
-    force, tilt = np.zeros(k), np.zeros((k, 2, 4))
-    e, n_act, gap = contact_assemble(x, stencils, geo, kappa, grad, act, w, nrm, coef, force, tilt)
-    return e, grad, (act, n_act, w, nrm, coef, force, tilt), gap
-
-
-def hessian_entries(x, stencils, pairs):
-    """The pair-operator entries (rows, weights, blocks, count) of assembled pair data."""
-    act, n_act, w, nrm, coef, force, tilt = pairs
-    room = 3 * max(n_act, 1)
-    rows, w_out, blocks = np.zeros((room, 4), np.int64), np.zeros((room, 4)), np.zeros((room, 3, 3))
-    count = barrier_blocks(stencils, act, n_act, w, nrm, coef, force, tilt, x, rows, w_out, blocks)
-    return rows, w_out, blocks, count
 
 
 @pytest.mark.parametrize("kind", ["pt", "ee"])

@@ -6,7 +6,6 @@ import contextlib
 import os
 import signal
 import tracemalloc
-from datetime import timedelta
 
 import numpy as np
 import pytest
@@ -19,7 +18,7 @@ from clothtool.io.obj import parse_obj
 from clothtool.io.ply import PlyMesh, parse_ply, write_ply
 
 # CLOTHTOOL_FUZZ_EXAMPLES=20000 pytest tests/test_fuzz.py  for a longer hunt
-FUZZ = settings(max_examples=int(os.environ.get("CLOTHTOOL_FUZZ_EXAMPLES", 300)), deadline=timedelta(seconds=2),
+FUZZ = settings(max_examples=int(os.environ.get("CLOTHTOOL_FUZZ_EXAMPLES", 300)), deadline=None,
                 suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
 HANG_SECONDS = 10
 NAME = "fuzzed.ply"
@@ -76,15 +75,17 @@ class Hang(BaseException):
 
 @contextlib.contextmanager
 def no_hang(seconds=HANG_SECONDS):
+    """Raise :class:`Hang` once the block has used ``seconds`` of this process's CPU time
+    (ITIMER_PROF: a loaded machine slows the wall clock, not the CPU a loop burns)."""
     def expire(signum, frame):
-        raise Hang(f"reading took more than {seconds} s")
-    old = signal.signal(signal.SIGALRM, expire)
-    signal.setitimer(signal.ITIMER_REAL, seconds)
+        raise Hang(f"reading took more than {seconds} s of CPU")
+    old = signal.signal(signal.SIGPROF, expire)
+    signal.setitimer(signal.ITIMER_PROF, seconds)
     try:
         yield
     finally:
-        signal.setitimer(signal.ITIMER_REAL, 0)
-        signal.signal(signal.SIGALRM, old)
+        signal.setitimer(signal.ITIMER_PROF, 0)
+        signal.signal(signal.SIGPROF, old)
 
 
 def parsed(parse, data, name, bytes_per_input_byte, **kwargs):

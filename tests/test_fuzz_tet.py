@@ -111,6 +111,6 @@ def test_a_huge_gmsh_node_tag_fails_at_once(folder, seeds):
     tag = f"\n{len(X)}\n".encode()  # the last node tag of the single node block
     last = text.index(tag, start)
     mutant = text[:last] + b"\n3000000000\n" + text[last + len(tag):]
-    started = time.perf_counter()
+    started = time.process_time()  # CPU time: a loaded machine does not slow it
     assert outcome(folder, "msh41_ascii", mutant, seeds) is None
-    assert time.perf_counter() - started < 5
+    assert time.process_time() - started < 5

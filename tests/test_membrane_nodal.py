@@ -2,13 +2,14 @@
 
 import numpy as np
 import pytest
+from conftest import random_rotation
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from clothtool.errors import InputError
 from clothtool.sim.model.config import load_config
 from clothtool.sim.model.builder import build_model
-from clothtool.sim.linalg.blocks import BlockPattern
+from clothtool.sim.linalg.blocks import BlockMatrix, BlockPattern
 from clothtool.sim.energies.membrane import membrane_total_energy
 from clothtool.sim.energies.membrane_nodal import nodal_assemble, nodal_energy, nodal_operator, nodal_pairs
 from clothtool.sim.energies.terms import NodalMembrane
@@ -43,13 +44,13 @@ def assemble(op, pattern, slots, x, project):
 
 
 def dense(pattern, values):
-    n = pattern.n
-    k = np.zeros((3 * n, 3 * n))
-    for i in range(n):
-        for s in range(pattern.row_ptr[i], pattern.row_ptr[i + 1]):
-            j = pattern.col[s]
-            k[3 * i:3 * i + 3, 3 * j:3 * j + 3] = values[s]
-    return k
+    return BlockMatrix(pattern, values).to_scipy().toarray()
+
+
+def random_sheets(max_examples):
+    """A hypothesis test over a seed and a mesh kind."""
+    return lambda test: settings(max_examples=max_examples, deadline=None)(
+        given(seed=st.integers(0, 2**31), kind=st.sampled_from(KINDS))(test))
 
 
 def flat(uv):
@@ -84,8 +85,7 @@ compression (rest factor 0.9 less than the stretch) and tension."""
     assert np.abs(num_hess - dense(pattern, values)).max() <= 1e-6 * np.abs(num_hess).max()
 
 
-@settings(max_examples=6, deadline=None)
-@given(seed=st.integers(0, 2**31), kind=st.sampled_from(KINDS))
+@random_sheets(6)
 def test_projected_hessian_is_psd(seed, kind):
     uv, faces, dr_inv, area, stretch, shear = sheet(kind)
     op, pattern, slots = operator(uv, faces, dr_inv, area, stretch, shear)
@@ -95,8 +95,7 @@ def test_projected_hessian_is_psd(seed, kind):
     assert np.linalg.eigvalsh(k).min() >= -1e-9 * np.abs(k).max()
 
 
-@settings(max_examples=10, deadline=None)
-@given(seed=st.integers(0, 2**31), kind=st.sampled_from(KINDS))
+@random_sheets(10)
 def test_patch_test_an_affine_map_stores_the_constant_strain_energy(seed, kind):
     """x = A u + c: every C_v is AᵀA, so W = A_total Ψ(A), the triangles' energy, and the
     interior vertices feel no force."""
@@ -120,17 +119,13 @@ def test_patch_test_an_affine_map_stores_the_constant_strain_energy(seed, kind):
     assert np.abs(grad.sum(axis=0)).max() <= 1e-9 * np.abs(grad).max()
 
 
-@settings(max_examples=10, deadline=None)
-@given(seed=st.integers(0, 2**31), kind=st.sampled_from(KINDS))
+@random_sheets(10)
 def test_rigid_motions_change_neither_energy_nor_force_magnitudes(seed, kind):
     uv, faces, dr_inv, area, stretch, shear = sheet(kind)
     op, pattern, slots = operator(uv, faces, dr_inv, area, stretch, shear)
     rng = np.random.default_rng(seed)
     x = flat(uv) + 0.002 * rng.standard_normal((len(uv), 3))
-    q, r = np.linalg.qr(rng.standard_normal((3, 3)))
-    rot = q * np.sign(np.diag(r))
-    if np.linalg.det(rot) < 0:
-        rot[:, 0] *= -1
+    rot = random_rotation(rng)
     energy, grad, _ = assemble(op, pattern, slots, x, True)
     moved, moved_grad, _ = assemble(op, pattern, slots, x @ rot.T + rng.standard_normal(3), True)
     assert moved == pytest.approx(energy, rel=1e-10)

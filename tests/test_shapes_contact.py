@@ -11,14 +11,13 @@ a capsule (its axis with a radius) and a plane (a vertex–plane stencil).
 import ipctk
 import numpy as np
 import pytest
-from conftest import dense_operator
+from conftest import assemble, dense_operator, hessian_entries
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 from scipy.optimize import minimize_scalar
 
-from clothtool.contact.barrier import (EDGE_EDGE, POINT_PLANE, POINT_TRIANGLE, barrier_blocks,
-                                       contact_assemble, contact_energy, pair_distance,
-                                       pair_geometry, pair_thickness)
+from clothtool.contact.barrier import (EDGE_EDGE, POINT_PLANE, POINT_TRIANGLE, contact_energy,
+                                       pair_distance, pair_geometry, pair_thickness)
 from clothtool.contact.broadphase import contact_stencils, mesh_edges
 from clothtool.contact.ccd import additive_ccd
 
@@ -43,22 +42,9 @@ def triangle_samples(a, b, c, n=300):
     return a + u[:, None] * (b - a) + v[:, None] * (c - a)
 
 
-def assemble(x, stencils, geo, kappa=1.0):
-    k = len(stencils)
-    grad = np.zeros_like(x)
-    pairs = (np.zeros(k, np.int64), np.zeros((k, 4)), np.zeros((k, 3)), np.zeros(k), np.zeros(k),
-             np.zeros((k, 2, 4)))
-    act, w, nrm, coef, force, tilt = pairs
-    e, n_act, gap = contact_assemble(x, stencils, geo, kappa, grad, act, w, nrm, coef, force, tilt)
-    return e, grad, (act, n_act, w, nrm, coef, force, tilt), gap
-
-
 def operator_hessian(x, stencils, pairs):
     """The dense Hessian barrier_blocks writes (Gauss–Newton plus tilt terms) and its entry count."""
-    act, n_act, w, nrm, coef, force, tilt = pairs
-    room = 3 * max(n_act, 1)
-    rows, w_out, blocks = np.zeros((room, 4), np.int64), np.zeros((room, 4)), np.zeros((room, 3, 3))
-    count = barrier_blocks(stencils, act, n_act, w, nrm, coef, force, tilt, x, rows, w_out, blocks)
+    rows, w_out, blocks, count = hessian_entries(x, stencils, pairs)
     return dense_operator(rows, w_out, blocks, count, len(x)), count
 
 

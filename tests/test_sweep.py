@@ -8,12 +8,12 @@ import os
 import signal
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
 import pytest
 from click.testing import CliRunner
+from conftest import running, wait_until
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -319,32 +319,34 @@ def test_failed_runs_are_named_and_the_sweep_goes_on(tmp_path):
     assert again.returncode == 3 and "(2 ran now" in again.stdout
 
 
+@pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="needs Linux /proc")
 def test_ctrl_c_then_rerun_completes_only_the_missing_runs(tmp_path):
     """Ctrl-C (SIGINT to the process group) stops a 12-run sweep midway: exit 130, no
     temporary file, every run folder complete or marked not done; the rerun runs only
-    the missing ones, and the table equals that of an uninterrupted sweep."""
+    the missing ones, and the table equals that of an uninterrupted sweep.
+
+    No clock: once 3 runs are done the pool and its workers are frozen (SIGSTOP to the
+    pool's process group), the Ctrl-C goes to the caller, and they are let go on (SIGCONT)
+    only when the caller's stop (SIGTERM) is waiting at the pool: however slow the machine,
+    no run is handed out after the Ctrl-C, so the sweep stops midway."""
     base = write_base(tmp_path, BASE.replace("nx: 6, ny: 6", "nx: 10, ny: 10")
                       .replace("frames: 6", "frames: 40"))
     runs, whole = tmp_path / "runs", tmp_path / "whole"
-    proc = subprocess.Popen([*CLOTHTOOL, "sweep", str(base), "-o", str(runs), *GRID_12, "-j", "2"],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, start_new_session=True)
-    try:
-        deadline = time.monotonic() + 300
-        while len(list(runs.glob("run_*/status.json"))) < 3:
-            assert proc.poll() is None, proc.communicate()
-            assert time.monotonic() < deadline
-            time.sleep(0.01)
+    with running([*CLOTHTOOL, "sweep", base, "-o", runs, *GRID_12, "-j", "2"], group=True) as proc:
+        wait_until(proc, lambda: len(list(runs.glob("run_*/status.json"))) >= 3, "3 runs done")
+        pool, = _pool_processes(proc.pid)  # the leader of its own process group
+        os.killpg(pool, signal.SIGSTOP)
+        frozen = {p.parent.name for p in runs.glob("run_*/status.json")}
         os.killpg(proc.pid, signal.SIGINT)
-        _, stderr = proc.communicate(timeout=60)
-    finally:
-        if proc.poll() is None:
-            os.killpg(proc.pid, signal.SIGKILL)
-            proc.wait()
+        wait_until(proc, lambda: _signal_pending(pool, signal.SIGTERM), "the pool's SIGTERM")
+        os.killpg(pool, signal.SIGCONT)
+        _, stderr = proc.communicate()
     assert proc.returncode == 130 and stderr.decode() == "clothtool: interrupted\n"
     assert not [p for p in runs.rglob("*") if ".tmp-" in p.name]
     manifest = {r["run"]: r["status"] for r in read_csv(runs / "manifest.csv")}
     done = {p.parent.name for p in runs.glob("run_*/status.json")}
-    assert 3 <= len(done) < 12, "the sweep was not interrupted midway"
+    # no more than the two workers' runs at the Ctrl-C ran on
+    assert len(frozen) >= 3 and len(done) <= len(frozen) + 2 and len(done) < 12
     assert {r for r, s in manifest.items() if s == "done"} <= done
     for run in done:
         assert json.loads((runs / run / "status.json").read_text())["status"] == "done"
@@ -435,6 +437,14 @@ def _open_files(pid):
         return []
 
 
+def _signal_pending(pid, signum):
+    """Is ``signum`` pending for process ``pid`` (sent, not yet delivered)? Linux's
+    /proc/PID/status gives the pending set as a hex mask (ShdPnd: sent to the process)."""
+    status = Path(f"/proc/{pid}/status").read_text()
+    mask = int(status.split("ShdPnd:")[1].split()[0], 16)
+    return bool(mask >> (signum - 1) & 1)
+
+
 def _pool_processes(pid):
     """The sweep pool processes below ``pid`` (not their workers, forks with the same command
     line)."""
@@ -459,15 +469,6 @@ def _group_alive(pgid):
 
 
 @pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="needs Linux /proc")
-def _wait_for_frame(proc, path, timeout=300):
-    """Wait until the sweep ``proc`` has written ``path``; fail if it ends or times out first."""
-    deadline = time.monotonic() + timeout
-    while not path.exists():
-        assert proc.poll() is None, proc.communicate()
-        assert time.monotonic() < deadline
-        time.sleep(0.01)
-
-
 def test_a_pool_process_that_dies_stops_its_workers_and_the_rerun_resumes(tmp_path):
     """SIGKILL to the pool process in the middle of the runs: its workers are stopped (their
     runs left not done, no temporary file), the sweep says so in one line (exit code 1), and
@@ -476,16 +477,11 @@ def test_a_pool_process_that_dies_stops_its_workers_and_the_rerun_resumes(tmp_pa
     runs = tmp_path / "runs"
     args = [*CLOTHTOOL, "sweep", str(base), "-o", str(runs), "-j", "2",
             "--grid", "material.stretch=1e3,2e3,3e3,4e3"]
-    proc = subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
-    try:
-        _wait_for_frame(proc, runs / "run_0000" / "frame_00010.ply")
+    with running(args) as proc:
+        wait_until(proc, (runs / "run_0000" / "frame_00010.ply").exists, "frame 10 written")
         pool, = _pool_processes(proc.pid)
         os.kill(pool, signal.SIGKILL)
-        stdout, stderr = proc.communicate(timeout=120)
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.wait()
+        stdout, stderr = proc.communicate()
     assert proc.returncode == 1, stderr
     assert stderr.decode() == (
         "clothtool: error: the process that runs the sweep's workers died (killed by signal "
@@ -505,20 +501,14 @@ def test_a_worker_that_dies_fails_its_run_only(tmp_path):
     a new worker takes the rest, every other run is done."""
     base = write_base(tmp_path, BASE.replace("frames: 6", "frames: 400"))
     runs = tmp_path / "runs"
-    proc = subprocess.Popen([*CLOTHTOOL, "sweep", str(base), "-o", str(runs), "-j", "2",
-                             "--grid", "material.stretch=1e3,2e3,3e3,4e3"],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE)
-    try:
-        _wait_for_frame(proc, runs / "run_0000" / "frame_00010.ply")
+    with running([*CLOTHTOOL, "sweep", base, "-o", runs, "-j", "2",
+                  "--grid", "material.stretch=1e3,2e3,3e3,4e3"]) as proc:
+        wait_until(proc, (runs / "run_0000" / "frame_00010.ply").exists, "frame 10 written")
         # the worker running run_0000: the one with a file of its folder open (stats.csv)
         victim = next(pid for pid in _descendants(proc.pid)
                       if any(str(runs / "run_0000") in path for path in _open_files(pid)))
         os.kill(victim, signal.SIGKILL)
-        stdout, stderr = proc.communicate(timeout=600)
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.wait()
+        stdout, stderr = proc.communicate()
     assert proc.returncode == 3, stderr
     manifest = {r["run"]: r for r in read_csv(runs / "manifest.csv")}
     assert manifest["run_0000"]["status"] == "failed"

@@ -177,16 +177,22 @@ def _mollified(x, st, geometry, big_r):
 
 
 @njit(cache=True)
+def barrier_argument(x, st, geometry, w, r):
+    """(d², u = d² − ξ², û = d̂ (2ξ + d̂), d̂, R) of a pair (:func:`pair_thickness`,
+    :func:`pair_distance` filling ``w`` and ``r``): its barrier acts where 0 < u < û."""
+    xi, dhat, big_r = pair_thickness(st, geometry)
+    d2 = pair_distance(x, st, w, r)
+    return d2, d2 - xi * xi, dhat * (2.0 * xi + dhat), dhat, big_r
+
+
+@njit(cache=True)
 def contact_energy(x, stencils, geometry, kappa):
     """Σ over pairs of κ d̂² m B(u/û); +inf when a pair is at or inside its thickness."""
     total = 0.0
     w = np.empty(4)
     r = np.empty(3)
-    for k in range(stencils.shape[0]):
-        st = stencils[k]
-        xi, dhat, big_r = pair_thickness(st, geometry)
-        u = pair_distance(x, st, w, r) - xi * xi
-        uhat = dhat * (2.0 * xi + dhat)
+    for st in stencils:
+        _, u, uhat, dhat, big_r = barrier_argument(x, st, geometry, w, r)
         if u >= uhat:
             continue
         if u <= 0.0:
@@ -212,14 +218,10 @@ def contact_assemble(x, stencils, geometry, kappa, grad, active, weights, normal
     n_act = 0
     w = np.empty(4)
     r = np.empty(3)
-    for k in range(stencils.shape[0]):
-        st = stencils[k]
-        xi, dhat, big_r = pair_thickness(st, geometry)
-        d2 = pair_distance(x, st, w, r)
+    for k, st in enumerate(stencils):
+        d2, u, uhat, dhat, big_r = barrier_argument(x, st, geometry, w, r)
         d = np.sqrt(d2)
         gap = min(gap, d - big_r)
-        u = d2 - xi * xi
-        uhat = dhat * (2.0 * xi + dhat)
         if u >= uhat:
             continue
         if u <= 0.0:

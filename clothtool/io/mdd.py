@@ -19,6 +19,7 @@ import numpy as np
 
 from clothtool.errors import InputError
 from clothtool.io.atomic import atomic_path, remove_quietly, temporary_name
+from clothtool.io.files import read_bytes
 
 HEADER = np.dtype(">i4")
 VALUE = np.dtype(">f4")
@@ -62,11 +63,7 @@ class MddWriter:
 def read_mdd(path):
     """(times (K,) float32 seconds, positions (K, N, 3) float32) of an MDD file."""
     path = os.fspath(path)
-    try:
-        with open(path, "rb") as fh:
-            data = fh.read()
-    except OSError as exc:
-        raise InputError(f"{path}: cannot read: {exc.strerror}") from None
+    data = read_bytes(path, "an MDD file")
     if len(data) < 8:
         raise InputError(f"{path}: {len(data)} bytes, too short for an MDD header")
     k, n = (int(v) for v in np.frombuffer(data, HEADER, 2))

@@ -27,6 +27,7 @@ import warnings
 import numpy as np
 
 from clothtool.errors import InputError
+from clothtool.io.files import read_bytes
 from clothtool.io.numbers import parse_rows
 from clothtool.io.ply import PlyMesh, fan
 
@@ -50,14 +51,7 @@ def read_obj(path, *, reuse=None):
     """Read an OBJ file into a :class:`~clothtool.io.ply.PlyMesh`. ``reuse``: a mesh read
     before; when this file ends with its face block, the faces are not parsed again."""
     path = os.fspath(path)
-    try:
-        with open(path, "rb") as fh:
-            data = fh.read()
-    except IsADirectoryError:
-        raise InputError(f"{path}: is a folder, not an OBJ file") from None
-    except OSError as exc:
-        raise InputError(f"{path}: cannot read: {exc.strerror}") from None
-    return parse_obj(data, path, reuse=reuse)
+    return parse_obj(read_bytes(path, "an OBJ file"), path, reuse=reuse)
 
 
 class _FaceBlock:

@@ -10,6 +10,7 @@ and "Display/render attributes"). Triangles keep their polygon's names (``face_s
 import numpy as np
 
 from clothtool.errors import InputError
+from clothtool.io.files import read_bytes
 
 _KEYS = (b"g", b"usemtl")
 
@@ -17,11 +18,7 @@ _KEYS = (b"g", b"usemtl")
 def face_groups(path, mesh):
     """{name: (K,) int64 sorted triangle indices} of the ``g`` and ``usemtl`` names of the OBJ
     file ``path`` read as ``mesh``; a name both a group and a material holds both's triangles."""
-    try:
-        with open(path, "rb") as fh:
-            lines = fh.read().split(b"\n")
-    except OSError as exc:
-        raise InputError(f"{path}: cannot read: {exc.strerror}") from None
+    lines = read_bytes(path, "an OBJ file").split(b"\n")
     statements = {key: ([], []) for key in _KEYS}  # line numbers, names
     for number, raw in enumerate(lines, start=1):
         words = raw.split(b"#", 1)[0].split()
@@ -46,11 +43,7 @@ def line_groups(path):
     """{name: (K, 2) int64 vertex pairs} of the ``l`` polylines under each ``g`` group of the
     OBJ file ``path``: each polyline ``l v1 v2 … vn`` gives its n − 1 segments, vertices
     0-based (1-based or negative in the file, as in ``f``)."""
-    try:
-        with open(path, "rb") as fh:
-            lines = fh.read().split(b"\n")
-    except OSError as exc:
-        raise InputError(f"{path}: cannot read: {exc.strerror}") from None
+    lines = read_bytes(path, "an OBJ file").split(b"\n")
     out, current, vertices = {}, [], 0
     for number, raw in enumerate(lines, start=1):
         words = raw.split(b"#", 1)[0].split()

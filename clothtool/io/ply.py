@@ -23,6 +23,7 @@ import numpy as np
 
 from clothtool.errors import InputError
 from clothtool.io.atomic import atomic_path
+from clothtool.io.files import reading
 
 SCALAR_TYPES = {
     "char": "i1", "int8": "i1", "uchar": "u1", "uint8": "u1",
@@ -203,18 +204,13 @@ def read_ply(path, *, reuse=None):
     byte-identical to ``reuse.face_block``, its faces are taken without parsing.
     """
     path = os.fspath(path)
-    try:
-        with open(path, "rb") as fh:
-            data = fh.read(_PROBE_BYTES)
-            if len(data) == _PROBE_BYTES:  # a large file: is it a PLY before reading it all?
-                if not data.startswith(b"ply"):
-                    parse_header(data, path)  # raises "not a PLY file"
-                fh.seek(0)
-                data = fh.read()
-    except IsADirectoryError:
-        raise InputError(f"{path}: is a folder, not a PLY file") from None
-    except OSError as exc:
-        raise InputError(f"{path}: cannot read: {exc.strerror}") from None
+    with reading(path, "a PLY file") as fh:
+        data = fh.read(_PROBE_BYTES)
+        if len(data) == _PROBE_BYTES:  # a large file: is it a PLY before reading it all?
+            if not data.startswith(b"ply"):
+                parse_header(data, path)  # raises "not a PLY file"
+            fh.seek(0)
+            data = fh.read()
     return parse_ply(data, path, reuse=reuse)
 
 

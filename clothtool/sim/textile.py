@@ -19,6 +19,7 @@ Known answers:
 
 import numpy as np
 
+from clothtool.geometry import grid_triangles
 from clothtool.sim.model.config import STANDARD_GRAVITY
 
 JITTER = 0.35  # a ``jittered`` strip's vertices move by up to this fraction of the spacing
@@ -176,17 +177,8 @@ def disc(radius, spacing, kind="grid", *, seed=0):
 def _criss_cross(a, b):
     """Grid over a × b (vertex j·len(a) + i at (a_i, b_j)), quads split by alternating diagonals
     as :func:`clothtool.sim.model.mesh.grid_mesh` does."""
-    nx, ny = len(a), len(b)
     aa, bb = np.meshgrid(a, b)
-    uv = np.stack([aa.ravel(), bb.ravel()], axis=1)
-    i, j = np.meshgrid(np.arange(nx - 1), np.arange(ny - 1))
-    i, j = i.ravel(), j.ravel()
-    v00, v10 = j * nx + i, j * nx + i + 1
-    v01, v11 = v00 + nx, v10 + nx
-    even = ((i + j) % 2 == 0)[:, None]
-    t1 = np.where(even, np.stack([v00, v10, v11], 1), np.stack([v00, v10, v01], 1))
-    t2 = np.where(even, np.stack([v00, v11, v01], 1), np.stack([v10, v11, v01], 1))
-    return uv, np.concatenate([t1, t2]).astype(np.int64)
+    return np.stack([aa.ravel(), bb.ravel()], axis=1), grid_triangles(len(a), len(b))
 
 
 def _delaunay_strip(start, length, width, spacing, kind, seed, clamp_line):

@@ -27,7 +27,7 @@ from numba import njit
 
 from clothtool.sim.linalg.filter import FREE, PINNED, SLIDING
 from clothtool.sim.linalg.blocks import BlockPattern
-from clothtool.vec3 import spd_inverse3
+from clothtool.vec3 import copy_into, spd_inverse3
 
 COARSEST = 48  # nodes at which the hierarchy stops (dense Cholesky of ≤ 3·48 unknowns)
 OMEGA = 0.6  # Jacobi smoothing weight (λmax(D⁻¹A) ≤ 2 for these matrices)
@@ -149,7 +149,7 @@ NO_MULTIGRID = (np.zeros(1, np.int64), np.zeros(1, np.int64), np.zeros(1, np.int
 @njit(cache=True)
 def _filtered_block(b, i, j, kind, normal, out):
     """out = S_i B S_j (+ (I − S_i) on the diagonal, so held vertices stay non-singular)."""
-    out[:, :] = b
+    copy_into(b, out)
     for side in range(2):
         v = i if side == 0 else j
         if kind[v] == PINNED:
@@ -206,7 +206,7 @@ def setup_levels(fine, kind, normal, constrained, floor, mg):
             if constrained and (kind[i] != FREE or kind[j] != FREE):
                 _filtered_block(fine[s], i, j, kind, normal, block)
             else:
-                block[:, :] = fine[s]
+                copy_into(fine[s], block)
             if j == i:
                 spd_inverse3(block, lower, diag_inv[i])
             target = values[slot_map[s]]

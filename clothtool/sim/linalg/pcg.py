@@ -24,7 +24,7 @@ from clothtool.sim.linalg.filter import PINNED, apply_filter
 from clothtool.sim.linalg.blocks import block_multiply, residual
 from clothtool.sim.linalg.multigrid import COARSEST, NO_MULTIGRID, Hierarchy, vcycle
 from clothtool.sim.linalg.pairs import NO_PAIRS, pairs_offdiagonal_multiply
-from clothtool.vec3 import spd_inverse3
+from clothtool.vec3 import copy_into, spd_inverse3
 
 
 class BlockJacobi:
@@ -166,7 +166,7 @@ def filtered_pcg_arrays(row_ptr, col, values, b, x, kind, normal, constrained, t
             if res <= tol:
                 break
             _precondition(inv, r, kind, normal, constrained, z, mg)
-            p[:] = z
+            copy_into(z, p)
             rz = _dot(r, z)
         block_multiply(row_ptr, col, values, p, q)
         if extra[3] > 0:

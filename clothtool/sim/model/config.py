@@ -3,8 +3,9 @@
 Every problem is an :class:`~clothtool.errors.InputError` whose one-line message names the
 file and the dotted key (``material.stretch``), says what is wrong and, for an unknown key,
 suggests the closest valid one. The toolkit the sections are declared with is
-:mod:`clothtool.sim.model.schema`: a key is one :func:`~clothtool.sim.model.schema.setting` line (default
-and check), a section one dataclass plus its line in :class:`Config`, a collider kind one
+:mod:`clothtool.sim.model.schema`: a key is one :func:`~clothtool.sim.model.schema.setting` line (default,
+check and meaning: docs/simulate.md's key table is written from them by
+``scripts/reference_tables.py``), a section one dataclass plus its line in :class:`Config`, a collider kind one
 dataclass plus its entry in ``COLLIDER_KINDS``; what no single key can check is the section's
 ``finish``.
 
@@ -24,9 +25,9 @@ import yaml
 
 from clothtool.errors import InputError
 from clothtool.sim.model import methods
-from clothtool.sim.model.schema import (Section, as_dict, choice, choices, flag, integer, number, one_of,
-                                  pair_or_number, path, resolve_paths, section, setting,
-                                  suggest, tagged, type_error, vector3)
+from clothtool.sim.model.schema import (Section, as_dict, choice, choices, flag, integer, listing,
+                                        number, one_of, pair_or_number, path, resolve_paths,
+                                        section, setting, suggest, tagged, type_error, vector3)
 
 __all__ = ["load_config", "resolved_yaml", "as_dict", "Config", "SECTIONS", "COLLIDER_KINDS"]
 
@@ -52,11 +53,11 @@ non_negative = number(minimum=0)
 class GridSpec(Section):
     """A regular grid of ``nx`` × ``ny`` vertices, centred, in ``plane``; row ny−1 is the top."""
 
-    nx: int = setting(30, integer(minimum=2))
-    ny: int = setting(30, integer(minimum=2))
-    width: float = setting(1.0, positive)
-    height: float = setting(1.0, positive)
-    plane: str = setting("xy", choice(PLANES))
+    nx: int = setting(30, integer(minimum=2), "vertices per row (≥ 2); vertex index j·nx + i")
+    ny: int = setting(30, integer(minimum=2), "vertices per column (≥ 2); row ny − 1 is the top")
+    width: float = setting(1.0, positive, "m, along the plane's first axis, centred on the origin")
+    height: float = setting(1.0, positive, "m, along the plane's second axis")
+    plane: str = setting("xy", choice(PLANES), "`xy`, `xz` or `yz`")
 
 
 def vertex_list(value, key):
@@ -84,8 +85,10 @@ class Seam(Section):
     """Two boundary polylines sewn together: vertex ``a[i]`` to ``b[i]``; a side may name an
     OBJ group instead, whose boundary edges are the polyline."""
 
-    a: tuple | str = setting((), seam_side)
-    b: tuple | str = setting((), seam_side)
+    a: tuple | str = setting((), seam_side,
+                             "one side: vertex indices, or an OBJ group whose boundary edges "
+                             "are the side")
+    b: tuple | str = setting((), seam_side, "the other side; vertex a[i] is sewn to b[i]")
 
     def finish(self, given, key):
         for side in ("a", "b"):
@@ -98,6 +101,7 @@ class Seam(Section):
         return self
 
 
+@listing(Seam)
 def seam_list(value, key):
     if not isinstance(value, list):
         raise type_error(key, "a list of seams {a: [...], b: [...]} or {a: group, b: group}",
@@ -113,10 +117,17 @@ class Sewing(Section):
     ``gravity``: whether gravity acts while the garment is sewn (off: the panels stay where
     they are laid out)."""
 
-    stiffness: float = setting(1000.0, positive)
-    weld: float | None = setting(None, positive)
-    time: float = setting(2.0, positive)
-    gravity: bool = setting(False, flag)
+    stiffness: float = setting(1000.0, positive,
+                               "N/m per metre of seam: the stitches that pull the sides "
+                               "together, to start with (doubled for a pair behind its goal, "
+                               "which closes at a constant rate)")
+    weld: float | None = setting(None, positive,
+                                 "m: the seam is welded once every pair is within this (— = "
+                                 "1.25 × the self-collision thickness)")
+    time: float = setting(2.0, positive, "s: a seam not welded by then is a failure")
+    gravity: bool = setting(False, flag,
+                            "gravity while the garment is sewn (off: the panels stay where they "
+                            "are laid out)")
 
 
 @dataclass(frozen=True)
@@ -127,15 +138,34 @@ class MeshSpec(Section):
     ``weld_closed``: seams already closed in the file (boundary vertices of different panels
     within ``weld_tolerance`` m of each other) are welded at the start."""
 
-    grid: GridSpec | None = section(GridSpec, optional=True)
-    ply: Path | None = setting(None, path)
-    obj: Path | None = setting(None, path)
-    uv_scale: float = setting(1.0, positive)
-    seams: tuple = setting((), seam_list)
-    seam_tolerance: float = setting(0.02, non_negative)
+    grid: GridSpec | None = section(GridSpec, optional=True,
+                                    doc="a regular grid (exactly one of `mesh.grid`, "
+                                        "`mesh.ply`, `mesh.obj`)")
+    ply: Path | None = setting(None, path,
+                               "rest mesh from a PLY instead of a grid: its face `texcoord` "
+                               "(per corner) or `s t`/`u v` × `mesh.uv_scale` are the rest "
+                               "shape, its positions the initial state; without uv the mesh is "
+                               "its own rest state")
+    obj: Path | None = setting(None, path,
+                               "a garment (or any mesh) from an OBJ: per-corner `vt` × "
+                               "`mesh.uv_scale` are each triangle's rest shape, `g`/`usemtl` "
+                               "names its panels "
+                               "([Garments](#garments-patterns-per-panel-materials-seams-attach))")
+    uv_scale: float = setting(1.0, positive, "m per uv unit of a file's texture coordinates")
+    seams: tuple = setting((), seam_list,
+                           "`- {a: [vertices], b: [vertices]}`: boundary polylines sewn a[i] to "
+                           "b[i], then welded (needs `scene.self_collision`)")
+    seam_tolerance: float = setting(0.02, non_negative,
+                                    "largest relative difference of a seam's two sides' rest "
+                                    "lengths")
     sewing: Sewing = section(Sewing)
-    weld_closed: bool = setting(True, flag)
-    weld_tolerance: float = setting(1.0e-4, positive)
+    weld_closed: bool = setting(True, flag,
+                                "weld seams closed in the file at the start: boundary vertices "
+                                "of different panels within `mesh.weld_tolerance` of each other "
+                                "(as pattern software exports a sewn garment)")
+    weld_tolerance: float = setting(1.0e-4, positive,
+                                    "m, how close two panels' boundary vertices are to be welded "
+                                    "at the start")
 
     def finish(self, given, key):
         if sum(getattr(self, k) is not None for k in ("grid", "ply", "obj")) != 1:
@@ -158,16 +188,50 @@ class Material(Section):
     sheet bends off the mesh's lines) and shear per triangle; implicit method only.
     """
 
-    density: float = setting(0.2, positive)
-    stretch: float | tuple = setting(5000.0, pair_or_number(exclusive=False))
-    rest_stretch: float | tuple = setting(1.0, pair_or_number(exclusive=True))
-    shear: float = setting(50.0, non_negative)
-    bend: float = setting(1.0e-5, non_negative)
-    damping: float = setting(0.01, non_negative)
-    bend_model: str = setting("hessian", choice(BEND_MODELS))
-    damping_model: str = setting("frozen", choice(DAMPING_MODELS))
-    bending_length: float | None = setting(None, positive)
-    membrane_model: str = setting("triangle", choice(MEMBRANE_MODELS))
+    density: float = setting(0.2, positive, "kg/m²")
+    stretch: float | tuple = setting(5000.0, pair_or_number(exclusive=False),
+                                     "N/m (energy density over rest area): one number or "
+                                     "`[warp, weft]`, the stiffness along u and along v of the "
+                                     "rest uv (a grid's first and second axis)")
+    rest_stretch: float | tuple = setting(1.0, pair_or_number(exclusive=True),
+                                          "Baraff–Witkin's rest length factors b_u, b_v: one "
+                                          "number or `[b_u, b_v]`; the sheet rests at λ_u = "
+                                          "b_u, λ_v = b_v of its uv pattern (1.1: 10 % longer "
+                                          "along u). Different warp and weft values need rest "
+                                          "uv (a grid, or a PLY with texture coordinates)")
+    shear: float = setting(50.0, non_negative, "N/m, in-plane shear stiffness")
+    bend: float = setting(1.0e-5, non_negative,
+                          "N·m, flexural rigidity per unit width ([Textile "
+                          "units](#textile-units-and-tests)); 0 turns bending off")
+    damping: float = setting(0.01, non_negative,
+                             "s, stiffness-proportional (Rayleigh) damping; 0 = none")
+    bend_model: str = setting("hessian", choice(BEND_MODELS),
+                              "`hessian` (plate bending with the stated rigidity on any mesh "
+                              "that rests flat, with or without uv, panels of their own bend "
+                              "or damping included; a mesh resting curved and garment "
+                              "patterns per corner use `dihedral`), `dihedral` (the hinge "
+                              "model: 7–21 % soft on a grid, up to 20 % stiff on other "
+                              "meshes) or `quadratic` (its linearisation; flat rest states "
+                              "only); [Textile units](#textile-units-and-tests)")
+    damping_model: str = setting("frozen", choice(DAMPING_MODELS),
+                                 "`frozen`: D = βK(x_n)/ĥ, the stiffness at the start of the "
+                                 "step, which resists rigid rotation; `strain` (implicit "
+                                 "only): stretch, shear and bending damped by the "
+                                 "dissipation potential of their change over the step, "
+                                 "which no rigid motion feels (a sheet on a turntable "
+                                 "follows it, a crumpled start relaxes as at small steps; "
+                                 "1.5–2.1× the CPU of `frozen`; see Time stepping)")
+    bending_length: float | None = setting(None, positive,
+                                           "m, instead of `bend`: the cantilever test's bending "
+                                           "length c, `bend` = `density` · 9.81 · c³ (giving "
+                                           "both is an error)")
+    membrane_model: str = setting("triangle", choice(MEMBRANE_MODELS),
+                                  "`triangle` (stretch and shear per linear triangle) or "
+                                  "`nodal`: warp and weft stretch on each vertex's smoothed "
+                                  "metric FᵀF, shear per triangle, so the drape depends less on "
+                                  "the mesh (3.4 % → 1.3–2.3 % between a grid, a turned grid "
+                                  "and a Delaunay mesh). Needs a rest pattern per vertex (a "
+                                  "grid, or a PLY with uv) and `solver.method: implicit`")
 
     def finish(self, given, key):
         """``bend`` = ρ g c³ from ``bending_length`` c and ``density`` ρ (not both bend and c)."""
@@ -183,15 +247,20 @@ class PanelMaterial(Section):
     """One panel's material: the keys of ``material`` it changes (None: the ``material``
     value) and, instead of an OBJ group or material name, its triangles (``faces``)."""
 
-    density: float | None = setting(None, positive)
-    stretch: float | tuple | None = setting(None, pair_or_number(exclusive=False))
-    rest_stretch: float | tuple | None = setting(None, pair_or_number(exclusive=True))
-    shear: float | None = setting(None, non_negative)
-    bend: float | None = setting(None, non_negative)
-    damping: float | None = setting(None, non_negative)
-    faces: tuple | None = setting(None, vertex_list)
+    density: float | None = setting(None, positive, "as `material.density` (— = that value)")
+    stretch: float | tuple | None = setting(None, pair_or_number(exclusive=False),
+                                            "as `material.stretch`")
+    rest_stretch: float | tuple | None = setting(None, pair_or_number(exclusive=True),
+                                                 "as `material.rest_stretch`")
+    shear: float | None = setting(None, non_negative, "as `material.shear`")
+    bend: float | None = setting(None, non_negative, "as `material.bend`")
+    damping: float | None = setting(None, non_negative, "as `material.damping`")
+    faces: tuple | None = setting(None, vertex_list,
+                                  "the panel's triangles, when NAME is not an OBJ group or "
+                                  "material")
 
 
+@listing(PanelMaterial, ".NAME")
 def panel_materials(value, key):
     """{panel name: :class:`PanelMaterial`}: an OBJ group (g) or material (usemtl) name, or
     any name with ``faces``."""
@@ -213,18 +282,19 @@ class Rotate(Section):
     """Turn about the axis through ``center`` at ``speed`` rad/s (right-hand rule) until
     ``until`` s (None: the whole run)."""
 
-    center: tuple = setting((0.0, 0.0, 0.0), vector3())
-    axis: tuple = setting((1.0, 0.0, 0.0), vector3(nonzero=True))
-    speed: float = setting(0.0, number())
-    until: float | None = setting(None, non_negative)
+    center: tuple = setting((0.0, 0.0, 0.0), vector3(), "m, a point of the axis")
+    axis: tuple = setting((1.0, 0.0, 0.0), vector3(nonzero=True),
+                          "the axis' direction (right-hand rule)")
+    speed: float = setting(0.0, number(), "rad/s")
+    until: float | None = setting(None, non_negative, "s, turning stops then (— = the whole run)")
 
 
 @dataclass(frozen=True)
 class Translate(Section):
     """Move at ``velocity`` m/s until ``until`` s (None: the whole run)."""
 
-    velocity: tuple = setting((0.0, 0.0, 0.0), vector3())
-    until: float | None = setting(None, non_negative)
+    velocity: tuple = setting((0.0, 0.0, 0.0), vector3(), "m/s")
+    until: float | None = setting(None, non_negative, "s, moving stops then (— = the whole run)")
 
 
 @dataclass(frozen=True)
@@ -244,16 +314,18 @@ class Motion(Section):
 
 def motion():
     """Every collider's optional ``motion``."""
-    return section(Motion, optional=True, what="a mapping (rotate, translate)")
+    return section(Motion, optional=True, what="a mapping (rotate, translate)",
+                   doc="a rigid motion (implicit): `rotate` and/or `translate`, x(t) = c + T(t) "
+                   "+ R(θ(t))(x₀ − c), the centre moving with the translation")
 
 
 @dataclass(frozen=True)
 class Sphere(Section):
     kind, barrier = "sphere", False
 
-    center: tuple = setting((0.0, 0.0, 0.0), vector3())
-    radius: float = setting(1.0, positive)
-    friction: float = setting(0.0, non_negative)
+    center: tuple = setting((0.0, 0.0, 0.0), vector3(), "m")
+    radius: float = setting(1.0, positive, "m")
+    friction: float = setting(0.0, non_negative, "Coulomb's μ against the cloth")
     motion: Motion | None = motion()
 
 
@@ -264,9 +336,10 @@ class Plane(Section):
 
     kind, barrier = "plane", False
 
-    point: tuple = setting((0.0, 0.0, 0.0), vector3())
-    normal: tuple = setting((0.0, 1.0, 0.0), vector3(nonzero=True))
-    friction: float = setting(0.0, non_negative)
+    point: tuple = setting((0.0, 0.0, 0.0), vector3(), "m, a point of the plane")
+    normal: tuple = setting((0.0, 1.0, 0.0), vector3(nonzero=True),
+                            "the cloth stays on the side it points to")
+    friction: float = setting(0.0, non_negative, "Coulomb's μ")
     motion: Motion | None = motion()
 
 
@@ -276,10 +349,10 @@ class Capsule(Section):
 
     kind, barrier = "capsule", True
 
-    a: tuple = setting((-0.5, 0.0, 0.0), vector3())
-    b: tuple = setting((0.5, 0.0, 0.0), vector3())
-    radius: float = setting(0.1, positive)
-    friction: float = setting(0.0, non_negative)
+    a: tuple = setting((-0.5, 0.0, 0.0), vector3(), "m, one end of the segment")
+    b: tuple = setting((0.5, 0.0, 0.0), vector3(), "m, the other end")
+    radius: float = setting(0.1, positive, "m, the points within it of the segment")
+    friction: float = setting(0.0, non_negative, "Coulomb's μ")
     motion: Motion | None = motion()
 
     def finish(self, given, key):
@@ -295,11 +368,12 @@ class Box(Section):
 
     kind, barrier = "box", True
 
-    center: tuple = setting((0.0, 0.0, 0.0), vector3())
-    size: tuple = setting((1.0, 1.0, 1.0), vector3())
-    axis: tuple = setting((0.0, 1.0, 0.0), vector3(nonzero=True))
-    angle: float = setting(0.0, number())
-    friction: float = setting(0.0, non_negative)
+    center: tuple = setting((0.0, 0.0, 0.0), vector3(), "m")
+    size: tuple = setting((1.0, 1.0, 1.0), vector3(), "m, edge lengths")
+    axis: tuple = setting((0.0, 1.0, 0.0), vector3(nonzero=True),
+                          "the box is turned about this axis by `angle` from axis-aligned")
+    angle: float = setting(0.0, number(), "rad (right-hand rule)")
+    friction: float = setting(0.0, non_negative, "Coulomb's μ")
     motion: Motion | None = motion()
 
     def finish(self, given, key):
@@ -317,11 +391,16 @@ class MeshCollider(Section):
     kind, barrier = "mesh", True
     SOURCES = ("ply", "obj", "frames")
 
-    ply: Path | None = setting(None, path)
-    obj: Path | None = setting(None, path)
-    frames: Path | None = setting(None, path)
-    fps: float = setting(30.0, positive)
-    friction: float = setting(0.0, non_negative)
+    ply: Path | None = setting(None, path,
+                               "a static triangle mesh from a PLY (one of `ply`, `obj`, "
+                               "`frames`)")
+    obj: Path | None = setting(None, path, "a static triangle mesh from an OBJ")
+    frames: Path | None = setting(None, path,
+                                  "a folder of PLY or OBJ frames (one topology): positions "
+                                  "linear in time between frames, the last frame held after the "
+                                  "end")
+    fps: float = setting(30.0, positive, "frames per second of `frames`")
+    friction: float = setting(0.0, non_negative, "Coulomb's μ")
     motion: Motion | None = motion()
 
     def finish(self, given, key):
@@ -344,8 +423,8 @@ COLLIDER_KINDS = {cls.kind: cls for cls in (Sphere, Plane, Capsule, Box, MeshCol
 class SelfCollision(Section):
     """Cloth–cloth contact: surfaces kept ``thickness`` (m) apart, Coulomb ``friction``."""
 
-    thickness: float = setting(0.002, positive)
-    friction: float = setting(0.0, non_negative)
+    thickness: float = setting(0.002, positive, "m kept between the cloth's surfaces")
+    friction: float = setting(0.0, non_negative, "Coulomb's μ between them")
 
 
 def pin_vertices(value, key):
@@ -376,9 +455,13 @@ class PinGroup(Section):
     """Pinned vertices (set names and indices) on a rigid motion of their initial positions:
     ``vertices`` with at most one of ``rotate`` and ``translate``."""
 
-    vertices: tuple = setting((), pin_vertex_list)
-    rotate: Rotate | None = section(Rotate, optional=True)
-    translate: Translate | None = section(Translate, optional=True)
+    vertices: tuple = setting((), pin_vertex_list,
+                              "pin-set names and vertex indices, held on the group's motion")
+    rotate: Rotate | None = section(Rotate, optional=True,
+                                    doc="turn the group about an axis through `center` at "
+                                        "`speed`")
+    translate: Translate | None = section(Translate, optional=True,
+                                          doc="move the group at `velocity`")
 
     def finish(self, given, key):
         if "vertices" not in given:
@@ -393,6 +476,7 @@ class PinGroup(Section):
         return self.rotate or self.translate
 
 
+@listing(PinGroup)
 def pins(value, key):
     """Pin entries: set names, vertex indices, and moving groups ``{vertices: …, rotate: {…}}``
     or ``{vertices: …, translate: {…}}`` (:class:`PinGroup`)."""
@@ -407,8 +491,10 @@ class Attach(Section):
     """Garment ``vertices`` tied to collider ``to``'s surface: to its nearest point at t = 0,
     at the distance they start from it, carried with the collider's motion."""
 
-    vertices: tuple = setting((), vertex_list)
-    to: int = setting(0, integer(minimum=0))
+    vertices: tuple = setting((), vertex_list,
+                              "garment vertices carried by the collider's surface, at the "
+                              "distance they start from it")
+    to: int = setting(0, integer(minimum=0), "the collider's index in `scene.colliders`")
     required = ("vertices", "to")  # keys to give even at their default
 
     def finish(self, given, key):
@@ -418,6 +504,7 @@ class Attach(Section):
         return self
 
 
+@listing(Attach)
 def attach_list(value, key):
     """One ``{vertices: [...], to: K}`` or a list of them."""
     if isinstance(value, dict):
@@ -436,14 +523,31 @@ class Scene(Section):
     ever crosses; the other methods project
     vertices onto spheres and planes."""
 
-    gravity: tuple = setting((0.0, -9.81, 0.0), vector3())
-    pins: tuple = setting((), pins)
-    colliders: tuple = setting((), tagged(COLLIDER_KINDS, what="collider"))
-    collision_margin: float = setting(2.0e-3, positive)
-    activation_distance: float | None = setting(None, positive)
+    gravity: tuple = setting((0.0, -9.81, 0.0), vector3(), "m/s²")
+    pins: tuple = setting((), pins,
+                          "named sets `top_corners`, `bottom_corners`, `corners`, `top_edge`, "
+                          "`bottom_edge`, `left_edge`, `right_edge` (grids) and vertex indices; "
+                          "and pin groups `{vertices: NAME or [names, indices], rotate: {...}}` "
+                          "or `{vertices: …, translate: {...}}` (implicit)")
+    colliders: tuple = setting((), tagged(COLLIDER_KINDS, what="collider"),
+                               "`- sphere: {...}`, `- plane: {...}` (every method) and `- "
+                               "capsule`, `- box`, `- mesh` (implicit: intersection-free "
+                               "barrier contact), in any mix; each may move rigidly (`motion`, "
+                               "implicit)")
+    collision_margin: float = setting(2.0e-3, positive,
+                                      "m kept between vertices and collider surfaces (for mesh "
+                                      "colliders: between the cloth's and the collider's "
+                                      "surfaces)")
+    activation_distance: float | None = setting(None, positive,
+                                                "m, depth of the contact barrier's wall inside "
+                                                "the margin and the self-collision thickness (— "
+                                                "= ¾ of each)")
     self_collision: SelfCollision | None = section(
-        SelfCollision, optional=True, what="a mapping (thickness, friction)")
-    attach: tuple = setting((), attach_list)
+        SelfCollision, optional=True, what="a mapping (thickness, friction)",
+        doc="cloth–cloth contact (implicit) keeping the surfaces `thickness` apart; absent = off")
+    attach: tuple = setting((), attach_list,
+                            "`{vertices: [...], to: K}` or a list: vertices carried by collider "
+                            "K's surface (implicit)")
 
     def finish(self, given, key):
         for i, a in enumerate(self.attach):
@@ -492,32 +596,66 @@ class Solver(Section):
     gradient of the step's potential is below ``vbd_tolerance`` × ‖M g‖ (0 = off).
     """
 
-    method: str = setting("implicit", choice(METHODS))
-    integrator: str = setting("bdf2", choice(INTEGRATORS))
-    substeps: int = setting(1, integer(minimum=1))
-    tolerance: float = setting(1.0e-6, number(minimum=0, exclusive=True, maximum=1))
-    max_iterations: int = setting(500, integer(minimum=1))
-    preconditioner: str = setting("multigrid", choice(PRECONDITIONERS))
-    newton_iterations: int = setting(20, integer(minimum=1))
-    newton_tolerance: float = setting(0.04, non_negative)
-    friction_velocity: float = setting(1.0e-4, positive)
-    line_search: bool = setting(True, flag)
-    max_speed: float = setting(1000.0, positive)
+    method: str = setting("implicit", choice(METHODS),
+                          "this solver; `mass-spring`, `pbd`, `xpbd`, `projective`, `explicit`, "
+                          "`vbd` are described in docs/solvers.md")
+    integrator: str = setting("bdf2", choice(INTEGRATORS),
+                              "`bdf2` (second order) or `euler` (backward Euler), for "
+                              "`implicit` and `mass-spring`; the other methods have their own "
+                              "first-order stepping and refuse an explicit `bdf2`")
+    substeps: int = setting(1, integer(minimum=1), "solver steps per frame (h = 1/(fps·substeps))")
+    tolerance: float = setting(1.0e-6, number(minimum=0, exclusive=True, maximum=1),
+                               "PCG stop: true relative residual ‖S(b − AΔx)‖/‖Sb‖ of the first "
+                               "Newton step; later ones ask for η = 0.9(‖∇E_k‖/‖∇E_{k−1}‖)² "
+                               "within [tolerance, 0.15] (Eisenstat–Walker); the sample config "
+                               "uses 1e-2")
+    max_iterations: int = setting(500, integer(minimum=1), "PCG iterations per Newton step")
+    preconditioner: str = setting("multigrid", choice(PRECONDITIONERS),
+                                  "`multigrid` (aggregation, below) or `jacobi` (block Jacobi)")
+    newton_iterations: int = setting(20, integer(minimum=1),
+                                     "Newton steps per solver step, at most (1 = "
+                                     "Baraff–Witkin's linearised step)")
+    newton_tolerance: float = setting(0.04, non_negative,
+                                      "m/s; Newton stops when a full step's largest velocity "
+                                      "correction max|Δx|/h and its decrement as a velocity, "
+                                      "√(ΔxᵀHΔx / free mass), are both at most this")
+    friction_velocity: float = setting(1.0e-4, positive,
+                                       "m/s, IPC's ε_v: contact friction holds below this "
+                                       "sliding speed (it creeps at most at ε_v where Coulomb's "
+                                       "law sticks)")
+    line_search: bool = setting(True, flag,
+                                "halve a Newton step until the incremental potential does not "
+                                "increase")
+    max_speed: float = setting(1000.0, positive, "m/s; faster counts as a blow-up")
     # the alternative methods (clothtool.sim.solvers, docs/solvers.md); ignored by the others
-    iterations: int = setting(10, integer(minimum=1))  # pbd, xpbd, projective, vbd: sweeps per step
-    pbd_variant: str = setting("gauss-seidel", choice(PBD_VARIANTS))  # pbd
-    relaxation: float = setting(1.0, non_negative)  # pbd jacobi: α in Σ Δ / (n_i + α)
-    pbd_stiffness: float = setting(1.0, number(minimum=0, exclusive=True, maximum=1))  # pbd
-    strain_limit: float = setting(0.0, number(minimum=0, maximum=1))  # pbd: ε, 0 = off
-    cfl: float = setting(0.5, number(minimum=0, maximum=1))  # explicit: 0 = no automatic steps
-    chebyshev_rho: float = setting(0.9, number(minimum=0, below=1))  # vbd: ρ in [0, 1), 0 = off
-    vbd_tolerance: float = setting(0.0, non_negative)  # vbd: stop at ‖∇E‖/‖Mg‖ ≤ this, 0 = off
+    iterations: int = setting(10, integer(minimum=1),
+                              "`pbd`, `xpbd`, `projective`, `vbd`: sweeps per solver step")
+    pbd_variant: str = setting("gauss-seidel", choice(PBD_VARIANTS),
+                               "`pbd`: `gauss-seidel` (symmetric sweeps), `jacobi` or "
+                               "`hierarchical`")
+    relaxation: float = setting(1.0, non_negative,
+                                "`pbd` jacobi: α in x_i += Σ corrections / (n_i + α)")
+    pbd_stiffness: float = setting(1.0, number(minimum=0, exclusive=True, maximum=1),
+                                   "`pbd`: per-constraint stiffness in (0, 1]")
+    strain_limit: float = setting(0.0, number(minimum=0, maximum=1),
+                                  "`pbd`: structural springs kept within [1 − ε, 1 + ε] of "
+                                  "their rest length; 0 = off")
+    cfl: float = setting(0.5, number(minimum=0, maximum=1),
+                         "`explicit`: internal steps of at most `cfl` × the estimated critical "
+                         "step; 0 = off")
+    chebyshev_rho: float = setting(0.9, number(minimum=0, below=1),
+                                   "`vbd`: Chebyshev acceleration with spectral-radius estimate "
+                                   "ρ in [0, 1) (only with at least 5 sweeps per step); 0 = off")
+    vbd_tolerance: float = setting(0.0, non_negative,
+                                   "`vbd`: stop a step's sweeps once the relative gradient "
+                                   "‖∇E‖/‖M g‖ is at most this (at most `iterations` sweeps); 0 "
+                                   "= always `iterations` sweeps")
 
 
 @dataclass(frozen=True)
 class Time(Section):
-    fps: float = setting(30.0, positive)
-    frames: int = setting(120, integer(minimum=0))
+    fps: float = setting(30.0, positive, "frames per second")
+    frames: int = setting(120, integer(minimum=0), "frames simulated after the initial one")
 
 
 def output_formats(value, key):
@@ -540,16 +678,25 @@ class Output(Section):
     ``usd/cloth.usda``: the cloth's points at every written frame, its uv, panels and the
     colliders with their motion)."""
 
-    dir: Path = setting(Path("out"), path)
-    every: int = setting(1, integer(minimum=1))
-    format: tuple = setting(("ply",), output_formats)
+    dir: Path = setting(Path("out"), path, "output folder")
+    every: int = setting(1, integer(minimum=1), "write every n-th frame")
+    format: tuple = setting(("ply",), output_formats,
+                            "a list of `ply` (frames in the folder), `obj` (OBJ frames in "
+                            "`obj/`, the pattern's uv per corner as `vt`), `mdd` (one point "
+                            "cache of every written frame with its time, `cache/cloth.mdd`, "
+                            "plus its base mesh `cache/cloth.obj`) and `usd` (one USD stage, `usd/cloth.usda`: "
+                            "the cloth's points per frame, its uv, panels and the colliders); [Frames for Blender, Maya, "
+                            "Houdini](#frames-for-blender-maya-houdini)")
 
 
 @dataclass(frozen=True)
 class Config(Section):
     mesh: MeshSpec = section(MeshSpec)
     material: Material = section(Material)
-    materials: dict = field(default_factory=dict, metadata={"check": panel_materials})
+    materials: dict = field(default_factory=dict, metadata={
+        "check": panel_materials,
+        "doc": "per panel: keys of `material` it changes; NAME an OBJ group or material, or any "
+               "name with `faces: [...]`"})
     scene: Scene = section(Scene)
     solver: Solver = section(Solver)
     time: Time = section(Time)

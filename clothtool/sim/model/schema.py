@@ -47,22 +47,66 @@ class Section:
         return self
 
 
-def setting(default, check):
-    """A dataclass field: its ``default`` and the ``check`` of a given value."""
-    return dataclasses.field(default=default, metadata={"check": check})
+def setting(default, check, doc):
+    """A dataclass field: its ``default``, the ``check`` of a given value and its ``doc``, the
+    meaning column of the config key table (Markdown; :func:`key_rows`)."""
+    return dataclasses.field(default=default, metadata={"check": check, "doc": doc})
 
 
-def section(cls, *, optional=False, what="a mapping"):
-    """A nested section: ``cls()`` by default, or None (off) when ``optional``."""
+def section(cls, *, optional=False, what="a mapping", doc=""):
+    """A nested section: ``cls()`` by default, or None (off) when ``optional``; ``doc``: its
+    row in the key table (an optional section's), none when empty."""
     def check(value, key):
         if value is None:
             value = {}  # reached only when not optional: null is the default section
         if not isinstance(value, dict):
             raise type_error(key, what, value)
         return cls.build(value, key)
+    metadata = {"check": check, "section": cls, "doc": doc}
     if optional:
-        return dataclasses.field(default=None, metadata={"check": check})
-    return dataclasses.field(default_factory=cls, metadata={"check": check})
+        return dataclasses.field(default=None, metadata=metadata)
+    return dataclasses.field(default_factory=cls, metadata=metadata)
+
+
+def listing(items, suffix="[]"):
+    """Mark a check that reads several ``items`` (a :class:`Section`, or ``{kind: Section}``
+    for a :func:`tagged` list): the key table lists their keys under ``key + suffix``."""
+    def mark(check):
+        check.items = (items, suffix)
+        return check
+    return mark
+
+
+def key_rows(cls, prefix="", seen=None):
+    """(dotted key, default, doc) of every setting of the section ``cls`` and of the sections,
+    list items and tagged kinds below it, in declaration order: the config key table. A
+    section met again is one row saying where its keys are listed."""
+    seen = {} if seen is None else seen
+    rows = []
+    for f in dataclasses.fields(cls):
+        if "check" not in f.metadata:
+            continue
+        key, meta = f"{prefix}{f.name}", f.metadata
+        default = f.default
+        if default is dataclasses.MISSING:  # a section's (no row) or a mapping's
+            default = None if "section" in meta else f.default_factory()
+        below = []  # (Section, its prefix)
+        if "section" in meta:
+            below = [(meta["section"], key + ".")]
+        elif hasattr(meta["check"], "items"):
+            items, suffix = meta["check"].items
+            kinds = items if isinstance(items, dict) else {"": items}
+            below = [(k, f"{key}{suffix}.{kind}." if kind else f"{key}{suffix}.")
+                     for kind, k in kinds.items()]
+        if "section" in meta and meta["section"] in seen:
+            rows.append((key, default, f"as `{seen[meta['section']]}`"))
+            continue
+        if meta["doc"]:
+            rows.append((key, default, meta["doc"]))
+        for sub, sub_prefix in below:
+            seen[sub] = sub_prefix[:-1]
+            rows += key_rows(sub, sub_prefix, seen)
+    return rows
 
 
 def tagged(kinds, *, what):
@@ -86,7 +130,7 @@ def tagged(kinds, *, what):
                 raise type_error(f"{here}.{kind}", "a mapping", body)
             out.append(kinds[kind].build(body, f"{here}.{kind}"))
         return tuple(out)
-    return check
+    return listing(kinds)(check)
 
 
 # ---------------------------------------------------------------------------- checks
