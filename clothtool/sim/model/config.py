@@ -684,8 +684,9 @@ class Output(Section):
                             "a list of `ply` (frames in the folder), `obj` (OBJ frames in "
                             "`obj/`, the pattern's uv per corner as `vt`), `mdd` (one point "
                             "cache of every written frame with its time, `cache/cloth.mdd`, "
-                            "plus its base mesh `cache/cloth.obj`) and `usd` (one USD stage, `usd/cloth.usda`: "
-                            "the cloth's points per frame, its uv, panels and the colliders); [Frames for Blender, Maya, "
+                            "plus its base mesh `cache/cloth.obj`) and `usd` (one USD "
+                            "stage, `usd/cloth.usda`: the cloth's points per frame, its uv, "
+                            "panels and the colliders); [Frames for Blender, Maya, "
                             "Houdini](#frames-for-blender-maya-houdini)")
 
 
