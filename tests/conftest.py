@@ -132,6 +132,15 @@ output: {dir: out/, every: 1}
 
 
 @contextlib.contextmanager
+def simulated(tmp_path_factory, config, name="run"):
+    """The output folder of one ``clothtool.simulate`` run of ``config`` (for a module fixture)."""
+    import clothtool
+
+    out = tmp_path_factory.mktemp(name)
+    clothtool.simulate(config, output_dir=out, progress=False)
+    return out
+
+
 def running(args, group=False):
     """The process ``args`` (stdout and stderr piped; Ctrl-C at its default, as from a terminal,
     even when the suite runs as a background job that ignores it), killed if it still runs at

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 import yaml
 from click.testing import CliRunner
-from conftest import grid
+from conftest import grid, simulated
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -32,9 +32,7 @@ CONFIG = {"mesh": {"grid": {"nx": 7, "ny": 5, "width": 0.6, "height": 0.4}},
 @pytest.fixture(scope="module")
 def run(tmp_path_factory):
     """A short hanging-sheet run written in all three formats, every second frame."""
-    out = tmp_path_factory.mktemp("run")
-    clothtool.simulate(CONFIG, output_dir=out, progress=False)
-    return out
+    return simulated(tmp_path_factory, CONFIG)
 
 
 def stats_times(out):

@@ -8,8 +8,8 @@ import sys
 
 import numpy as np
 import pytest
+from conftest import simulated
 
-import clothtool
 from clothtool.io.obj import read_obj
 from clothtool.io.ply import read_ply
 from clothtool.io.usd import UsdaWriter, prim_name
@@ -30,9 +30,7 @@ SCENE = {"mesh": {"grid": {"nx": 9, "ny": 6, "width": 0.8, "height": 0.5, "plane
 
 @pytest.fixture(scope="module")
 def run(tmp_path_factory):
-    out = tmp_path_factory.mktemp("usd")
-    clothtool.simulate(SCENE, output_dir=out, progress=False)
-    return out
+    return simulated(tmp_path_factory, SCENE, "usd")
 
 
 def test_the_stage_opens_with_the_frames_at_their_time_codes(run):
