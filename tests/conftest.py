@@ -131,7 +131,6 @@ output: {dir: out/, every: 1}
 """
 
 
-@contextlib.contextmanager
 def simulated(tmp_path_factory, config, name="run"):
     """The output folder of one ``clothtool.simulate`` run of ``config`` (for a module fixture)."""
     import clothtool
@@ -141,6 +140,7 @@ def simulated(tmp_path_factory, config, name="run"):
     return out
 
 
+@contextlib.contextmanager
 def running(args, group=False):
     """The process ``args`` (stdout and stderr piped; Ctrl-C at its default, as from a terminal,
     even when the suite runs as a background job that ignores it), killed if it still runs at

@@ -1,6 +1,7 @@
 """clothtool sweep / sweep-report: expansion of grid, zip and random specs, the folder and
 its manifest, local runs on a process pool, resume after Ctrl-C, failures, bad input."""
 
+import contextlib
 import csv
 import json
 import math
@@ -339,7 +340,8 @@ def test_ctrl_c_then_rerun_completes_only_the_missing_runs(tmp_path):
         frozen = {p.parent.name for p in runs.glob("run_*/status.json")}
         os.killpg(proc.pid, signal.SIGINT)
         wait_until(proc, lambda: _signal_pending(pool, signal.SIGTERM), "the pool's SIGTERM")
-        os.killpg(pool, signal.SIGCONT)
+        with contextlib.suppress(ProcessLookupError):
+            os.killpg(pool, signal.SIGCONT)
         _, stderr = proc.communicate()
     assert proc.returncode == 130 and stderr.decode() == "clothtool: interrupted\n"
     assert not [p for p in runs.rglob("*") if ".tmp-" in p.name]
@@ -440,7 +442,10 @@ def _open_files(pid):
 def _signal_pending(pid, signum):
     """Is ``signum`` pending for process ``pid`` (sent, not yet delivered)? Linux's
     /proc/PID/status gives the pending set as a hex mask (ShdPnd: sent to the process)."""
-    status = Path(f"/proc/{pid}/status").read_text()
+    try:
+        status = Path(f"/proc/{pid}/status").read_text()
+    except FileNotFoundError:  # it has ended: nothing is pending any more
+        return True
     mask = int(status.split("ShdPnd:")[1].split()[0], 16)
     return bool(mask >> (signum - 1) & 1)
 
