@@ -7,7 +7,8 @@ Rooms, from the top floor down (no import goes up a floor):
   ``textile``: the textile lab's tests (cantilever, hanging strip) as runs;
 - ``solvers``: one module per method (implicit, mass-spring, PBD, XPBD, projective, explicit,
   VBD);
-- ``solve``: the integrator protocol, the Newton loop and its contact term, statics;
+- ``solve``: the integrator protocol, the incremental potential's terms, the Newton loop
+  that sums them, its contact term, statics;
 - ``model``: the config and its schema, the builder, the Model and the State, mesh, pins,
   seams, attachments, colliders and their motion, the contact data;
 - ``energies``: membrane, bending, plate, springs, dissipation (numba kernels);
