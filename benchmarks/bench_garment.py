@@ -33,7 +33,7 @@ import numpy as np
 
 from benchmarks.common import markdown_table, write_csv
 from clothtool.geometry import grid_triangles, grid_uv
-from clothtool.io.obj_writer import write_obj
+from clothtool.io.caches.obj_writer import write_obj
 
 FPS, FRAMES = 30, 60
 WIDTH, HEIGHT, NX, NY = 0.4, 0.4, 17, 17

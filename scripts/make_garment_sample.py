@@ -30,7 +30,7 @@ import sys
 import numpy as np
 
 from clothtool.contact.shapes import capsule
-from clothtool.io.obj_writer import write_obj
+from clothtool.io.caches.obj_writer import write_obj
 
 BODY_FPS, DURATION, STILL, RAMP = 10, 1.5, 0.4, 0.3  # frames/s, s, s standing, s to full stride
 LEG_SWING, ARM_SWING, TURN, STRIDE = np.radians(20.0), np.radians(12.0), np.radians(8.0), 1.0

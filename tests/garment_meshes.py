@@ -3,7 +3,7 @@ per-corner ``vt`` (the pattern), positions laid out in 3D."""
 
 import numpy as np
 
-from clothtool.io.obj_writer import write_obj as write_obj_file
+from clothtool.io.caches.obj_writer import write_obj as write_obj_file
 
 
 def panel(nx, ny, width, height):

@@ -16,9 +16,9 @@ from hypothesis import strategies as st
 import clothtool
 from clothtool.cli import main
 from clothtool.errors import InputError, NumericalError
-from clothtool.io.mdd import MddWriter, read_mdd
+from clothtool.io.caches.mdd import MddWriter, read_mdd
 from clothtool.io.obj import read_obj
-from clothtool.io.obj_writer import ObjWriter, write_obj
+from clothtool.io.caches.obj_writer import ObjWriter, write_obj
 from clothtool.io.ply import read_ply
 from clothtool.sim.model.config import load_config
 from clothtool.sim.output import FrameWriter

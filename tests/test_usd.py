@@ -12,7 +12,7 @@ from conftest import simulated
 
 from clothtool.io.obj import read_obj
 from clothtool.io.ply import read_ply
-from clothtool.io.usd import UsdaWriter, prim_name
+from clothtool.io.caches.usd import UsdaWriter, prim_name
 from clothtool.sim.model.config import load_config
 from clothtool.sim.scene import RunScene
 

@@ -5,14 +5,14 @@
   ``clothtool analyze DIR --reference uv`` measures strain against the rest pattern;
 - ``obj``: ``obj/frame_NNNNN.obj``, the same positions (17 significant digits, read back
   exactly) with the pattern's texture coordinates per corner as ``vt``, so a garment
-  re-imports with its texture (:mod:`clothtool.io.obj_writer`);
+  re-imports with its texture (:mod:`clothtool.io.caches.obj_writer`);
 - ``mdd``: ``cache/cloth.mdd``, one point cache of every written frame with its time in
-  seconds (:mod:`clothtool.io.mdd`; Blender's Mesh Cache modifier plays it), and its base
+  seconds (:mod:`clothtool.io.caches.mdd`; Blender's Mesh Cache modifier plays it), and its base
   mesh ``cache/cloth.obj``, the initial state as an OBJ frame;
 - ``usd``: ``usd/cloth.usda``, one USD stage: the cloth's mesh with its points sampled at
   every written frame (time code = frame number, the fps as time codes per second), the
   pattern's uv as primvar ``st``, a GeomSubset per panel, and each collider as a mesh of its
-  own with its motion (:mod:`clothtool.io.usd`).
+  own with its motion (:mod:`clothtool.io.caches.usd`).
 
 Each format other than PLY has a folder of its own, so that every folder holds one format
 and ``clothtool analyze`` reads any of them.
@@ -31,8 +31,8 @@ from pathlib import Path
 import numpy as np
 
 from clothtool.errors import InputError, NumericalError
-from clothtool.io.mdd import MddWriter
-from clothtool.io.obj_writer import ObjWriter
+from clothtool.io.caches.mdd import MddWriter
+from clothtool.io.caches.obj_writer import ObjWriter
 from clothtool.io.ply import write_ply
 
 # per frame: Newton steps, PCG iterations, constraint sweeps (pbd, xpbd) or local–global
@@ -103,7 +103,7 @@ class FrameWriter:
         self._stats_file.flush()
         self._usd = None
         if "usd" in self.formats:
-            from clothtool.io.usd import UsdaWriter
+            from clothtool.io.caches.usd import UsdaWriter
 
             self._usd = UsdaWriter(self.out_dir / USD_DIR / USD, faces, corner_uv, panels,
                                    fps=fps, up=up,
