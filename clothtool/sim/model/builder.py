@@ -264,8 +264,7 @@ class ModelBuilder:
         if len(self.stitches):
             terms.append(Stitch(self.stitches, self.stitch_stiffness.copy()))
         beta = self.tri_damping
-        strain = (self.material.damping_model == "strain" and np.any(beta > 0.0)
-                  and self._method() == "implicit")
+        strain = self.material.damping_model == "strain" and np.any(beta > 0.0)
         bend_damping = None
         elements = [t.elements for t in terms]
         if strain and len(hinge):  # the bending dissipation's hinges in the matrix too
@@ -315,10 +314,6 @@ class ModelBuilder:
             strain_damping=strain_damping, bend_damping=bend_damping,
             hinge_damping_slots=pattern.slots(hinge) if bend_damping is not None else None,
         )
-
-    def _method(self):
-        """``solver.method`` (implicit when the builder has no config)."""
-        return "implicit" if self.config is None else self.config.solver.method
 
     def _per_vertex(self, value):
         """(N,) the area-weighted mean over each vertex's triangles of a per-triangle value."""
