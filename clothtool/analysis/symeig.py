@@ -13,9 +13,11 @@ is updated. The B matrices of a batch are rotated in lockstep along the last axi
 compiler vectorises the rotations across matrices; sweeps repeat until, in every matrix, the
 off-diagonal mass is below (2⁻⁵³)² of its Frobenius norm² (4–6 sweeps for 4×4; convergence is
 quadratic), so the eigenvalues are accurate to a few ε‖A‖. Eigenvectors are not accumulated:
-for the one that is needed, :func:`adjugate_eigenvector4` takes a column of adj(A − λI), accurate
-to about ε‖A‖/gap (the perturbation bound that Jacobi vectors also meet) at a fraction of the
-cost.
+for the one that is needed, :func:`adjugate_eigenvector4` takes a column of adj(A − λI) at a
+fraction of the cost. Its angle to the exact vector is at most
+√5(δλ + 4εm)/gap + √5·60εm³/Π_(j≠i)|λ_j − λ| (δλ the error of λ, m = max|A − λI|; derived in
+tests/test_kabsch.py): Davis–Kahan's bound, as for a Jacobi vector, except next to a near-double
+eigenvalue, where the cofactors' rounding (the second term) is the larger.
 """
 
 import math
@@ -97,7 +99,7 @@ def adjugate_eigenvector4(a, k, lam, b, x):
     """Unit eigenvector of the symmetric 4×4 matrix ``a[:, :, k]`` for its simple eigenvalue
     ``lam``, into ``x`` (4,); ``b`` is 4×4 scratch. B = A − λI has rank 3, so every column of
     adj(B) = Σ_i Π_(j≠i)(λ_j − λ) v_i v_iᵀ is a multiple of v; the column with the largest
-    diagonal cofactor (∝ v_i²) is taken. Its error is about ε‖A‖/gap, as for Jacobi vectors."""
+    diagonal cofactor (∝ v_i²) is taken. Its error: the module's bound."""
     for i in range(4):
         for j in range(4):
             b[i, j] = a[i, j, k] - (lam if i == j else 0.0)
