@@ -38,22 +38,17 @@ def hanging(path, x, frames=15, **mesh):
             "time": {"fps": 30, "frames": frames}, "output": {"format": ["ply", "obj"]}}
 
 
-def test_a_garment_sewn_in_the_file_runs_closed_and_crosses_nothing(tmp_path):
+def crossing_frames(out, frames, a, b, x0):
+    """(frames crossing by ours, by ipctk), the welded pairs merged; asserts every frame keeps
+    the file's vertices with the seam a–b closed (0 m)."""
     from clothtool.contact.broadphase import mesh_edges
     from clothtool.contact.intersect import has_intersections
 
     ipctk = pytest.importorskip("ipctk")
-    path, a, b, x0 = closed_obj(tmp_path)
-    out = tmp_path / "out"
-    lines = []
-    result = clothtool.simulate(hanging(path, x0), output_dir=out, progress=False,
-                                log=lines.append)
-    assert lines == result.notes and len(lines) == 1
-    assert "welded the closed seam left–right at the start: 7 vertex pairs, 0.3 m" in lines[0]
     merge = np.arange(len(x0))
     merge[b] = a
     crossings = ipc = 0
-    for k in range(16):
+    for k in range(frames + 1):
         frame = read_ply(out / f"frame_{k:05d}.ply")
         x = frame.vertices
         assert x.shape == x0.shape  # the file's vertices, the welded pairs at one position
@@ -61,8 +56,50 @@ def test_a_garment_sewn_in_the_file_runs_closed_and_crosses_nothing(tmp_path):
         f = merge[frame.faces]
         crossings += bool(has_intersections(x, f, np.zeros(len(x), bool)))
         ipc += bool(ipctk.has_intersections(ipctk.CollisionMesh(x, mesh_edges(f), f), x))
-    assert crossings == 0 and ipc == 0
+    return crossings, ipc
+
+
+def test_a_garment_sewn_in_the_file_runs_closed_and_crosses_nothing(tmp_path):
+    path, a, b, x0 = closed_obj(tmp_path)
+    out = tmp_path / "out"
+    lines = []
+    result = clothtool.simulate(hanging(path, x0), output_dir=out, progress=False,
+                                log=lines.append)
+    assert lines == result.notes and len(lines) == 1
+    assert "welded the closed seam left–right at the start: 7 vertex pairs, 0.3 m" in lines[0]
+    assert crossing_frames(out, 15, a, b, x0) == (0, 0)
+    x = read_ply(out / "frame_00015.ply").vertices
     assert np.ptp(x[:, 2]) > 0.01  # it moved out of its plane: the seam bends
+
+
+def test_a_seam_listed_and_closed_in_the_file_is_satisfied(tmp_path):
+    """One config for the sewing run and the exported garment: the seam listed in mesh.seams
+    is closed in the file, so the log says so (one line per seam) and the run goes on."""
+    path, a, b, x0 = closed_obj(tmp_path)
+    out = tmp_path / "out"
+    seams = [{"a": a.tolist(), "b": b.tolist()}]
+    result = clothtool.simulate(hanging(path, x0, seams=seams), output_dir=out, progress=False)
+    assert len(result.notes) == 2
+    assert "welded the closed seam left–right at the start" in result.notes[0]
+    assert result.notes[1] == ("mesh.seams[0]: already closed in the file, all 7 vertex pairs "
+                               "welded at the start: nothing to sew")
+    assert crossing_frames(out, 15, a, b, x0) == (0, 0)
+
+
+def test_a_seam_closed_at_its_ends_sews_the_rest(tmp_path):
+    """Only the seam's end pairs coincide in the file (its middle 4 mm open): those two are
+    welded at the start, the other five sewn, and the seam closes."""
+    x, lf, rf, luv, ruv, a, b = apart_pair(gap=0.0)
+    x[b[1:-1], 0] += 0.004
+    path = write_obj(tmp_path / "ends.obj", x, [("left", lf, luv), ("right", rf, ruv)])
+    cfg = hanging(path, x, frames=20, seams=[{"a": a.tolist(), "b": b.tolist()}],
+                  sewing={"time": 0.5})
+    result = clothtool.simulate(cfg, output_dir=tmp_path / "out", progress=False)
+    assert "mesh.seams[0]: already closed in the file, 2 of its 7 vertex pairs welded at the " \
+           "start, the others sewn" in result.notes
+    assert any("sewn and welded at frame" in line for line in result.notes)
+    last = read_ply(tmp_path / "out" / "frame_00020.ply").vertices
+    assert np.abs(last[a] - last[b]).max() == 0.0
 
 
 def test_weld_closed_off_refuses_the_overlap(tmp_path):

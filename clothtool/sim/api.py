@@ -85,6 +85,11 @@ def simulate(config_or_path, *, output_dir=None, overrides=None, progress=True, 
         note(f"mesh: welded the closed seam {a}–{b} at the start: {count} vertex pairs, "
              f"{length:.4g} m (mesh.weld_closed, mesh.weld_tolerance "
              f"{config.mesh.weld_tolerance:g} m)")
+    for key, a, b, closed, count in builder.listed_closed:
+        sides = f" ({a}–{b})" if isinstance(a, str) and isinstance(b, str) else ""
+        note(f"{key}{sides}: already closed in the file, " + (
+            f"all {count} vertex pairs welded at the start: nothing to sew" if closed == count
+            else f"{closed} of its {count} vertex pairs welded at the start, the others sewn"))
     integrator = make_integrator(model, config.solver, config.step)
     state = model.initial_state()
     frames, every, substeps = config.time.frames, config.output.every, config.solver.substeps

@@ -54,6 +54,7 @@ class ModelBuilder:
         self.sewing, self.weld_distance = None, 0.0  # mesh.sewing and its weld distance (m)
         self.file_mesh = None  # the mesh as the file gives it, when its closed seams are welded
         self.closed_seams = []  # (panel, panel, vertices, length m) welded at the start
+        self.listed_closed = []  # (key, a, b, pairs welded, pairs) of mesh.seams closed in the file
 
     @classmethod
     def from_config(cls, config):

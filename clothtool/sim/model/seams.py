@@ -30,7 +30,9 @@ WELD = 1.25  # default weld distance in self-collision thicknesses: the barrier 
 
 
 def add_config_seams(builder, mesh_spec, scene):
-    """Check ``mesh.seams`` against the mesh and add its stitches to the builder."""
+    """Check ``mesh.seams`` against the mesh and add its stitches to the builder. A seam the
+    file has closed already (its pairs welded at the start, ``mesh.weld_closed``) is
+    satisfied: it is checked, not sewn, and listed in ``builder.listed_closed``."""
     if not mesh_spec.seams:
         return
     mesh = builder.mesh if builder.file_mesh is None else builder.file_mesh  # the file's vertices
@@ -52,12 +54,13 @@ def add_config_seams(builder, mesh_spec, scene):
                              f"{len(sides[1])}; a[i] is sewn to b[i]")
         a, b, length = check_seam(mesh, *sides, mesh_spec.seam_tolerance, key)
         a, b = builder.to_model(a), builder.to_model(b)
-        if np.any(a == b):
-            i = int(np.argmax(a == b))
-            raise InputError(f"{mesh.path}: {key}: a[{i}] and b[{i}] are welded already (a seam "
-                             "closed in the file, mesh.weld_closed)")
-        pairs.append(np.stack([a, b], axis=1))
-        stiffness.append(mesh_spec.sewing.stiffness * length)
+        apart = a != b  # pairs welded at the start (mesh.weld_closed) are sewn already
+        if not apart.all():
+            builder.listed_closed.append((key, seam.a, seam.b, int((~apart).sum()), len(a)))
+        pairs.append(np.stack([a[apart], b[apart]], axis=1))
+        stiffness.append(mesh_spec.sewing.stiffness * length[apart])
+    if not sum(len(p) for p in pairs):
+        return  # every seam closed in the file: nothing to sew
     builder.add_stitches(np.concatenate(pairs), np.concatenate(stiffness))
     x = builder.mesh.positions
     builder.stitch_gap0 = np.linalg.norm(x[builder.stitches[:, 0]] - x[builder.stitches[:, 1]],
