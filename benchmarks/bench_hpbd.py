@@ -19,7 +19,7 @@ import sys
 import numpy as np
 
 from benchmarks.bench_methods import error, scene
-from benchmarks.common import markdown_table
+from benchmarks.common import markdown_table, write_doc_table
 from clothtool.sim.solvers.compare import run_in_memory
 
 N = 128
@@ -73,6 +73,7 @@ def run(out_dir):
     if ratios:
         md.append(f"\nMedian ratio {float(np.median(ratios)):.2f}, largest {max(ratios):.2f}.\n")
     (out_dir / "hpbd.md").write_text("\n".join(md))
+    write_doc_table("docs/solvers.md", "hpbd", md[2] + "".join(md[3:]), "hpbd")
     return rows
 
 

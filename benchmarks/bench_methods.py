@@ -44,7 +44,7 @@ import time
 import numpy as np
 import yaml
 
-from benchmarks.common import full_or, markdown_table, pyplot, write_csv
+from benchmarks.common import full_or, markdown_table, pyplot, write_csv, write_doc_table
 from clothtool.sim.solvers.compare import run_in_memory
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
@@ -354,6 +354,7 @@ def stability(out_dir):
             "overstretched (λmax > 2), `**X**` blow-up (non-finite, speed > 1000 m/s or |x| > 100 m).\n\n"
             + markdown_table(table, ["method", "start"] + cols))
     (out_dir / "stability.md").write_text(text)
+    write_doc_table(DOC, "stability", markdown_table(table, ["method", "start"] + cols), "methods")
     return rows
 
 
@@ -455,7 +456,30 @@ def profile(out_dir, steps=20):
             "those kernels are never called (0 calls).\n\n"
             + markdown_table(rows, ["scene", "stage", "calls", "ms_per_step", "share"]))
     (out_dir / "profile.md").write_text(text)
+    write_doc_table(DOC, "profile", markdown_table([{**r, "setup": r["scene"]} for r in rows], [
+        "setup", "stage", "calls", "ms_per_step", "share"]), "methods")
     return rows
+
+
+# ---------------------------------------------------------------------------- docs
+
+DOC = "docs/solvers.md"
+DOC_COLUMNS = ["scene", "method", "substeps", "iterations", "ms_per_frame", "error_m",
+               "max_stretch"]
+
+
+def doc_tables(rows, verdicts):
+    """docs/solvers.md's measured tables: the default's verdict, each scene's Pareto front,
+    and VBD against the default and projective on the hanging sheet."""
+    write_doc_table(DOC, "methods-verdict", markdown_table(verdicts, [
+        "scene", "default_error_m", "default_ms_per_frame", "on_front_for_errors_ge_1cm",
+        "front"]), "methods")
+    write_doc_table(DOC, "methods-front", markdown_table(
+        [r for name in SCENES for r in pareto([r for r in rows if r["scene"] == name])],
+        DOC_COLUMNS), "methods")
+    vbd = [r for r in rows if r["scene"] == "hanging" and r["status"] == "ok"
+           and (r["method"].startswith("vbd") or is_default(r) or r["method"] == "projective")]
+    write_doc_table(DOC, "methods-vbd", markdown_table(vbd, DOC_COLUMNS), "methods")
 
 
 # ---------------------------------------------------------------------------- main
@@ -522,6 +546,7 @@ def run(out_dir):
         md.append(f"\n### {name}: all runs\n")
         md.append(markdown_table(sub, COLUMNS[1:]))
     (out_dir / "methods.md").write_text("\n".join(md))
+    doc_tables(rows, verdicts)
     print(f"  methods done in {time.perf_counter() - started:.0f} s", flush=True)
     stability(out_dir)
     print(f"  stability done in {time.perf_counter() - started:.0f} s", flush=True)

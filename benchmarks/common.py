@@ -119,3 +119,44 @@ def median_seconds(fn, repeat=7):
         fn()
         times.append(time.perf_counter() - started)
     return statistics.median(times)
+
+
+# ---------------------------------------------------------------------------- measured tables
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+MEASURED = "measured on {commit} {date} (load {load:.1f} on {cores} cores), `{command}`"
+
+
+def measured_line(benchmark):
+    """'measured on <commit> <date> (load L on N cores), `python -m benchmarks NAME`': the
+    commit of this checkout (+ when clothtool/ or benchmarks/ differ from it), today (UTC)
+    and the 1-minute load average, which says how shared the machine was."""
+    def git(*args):
+        out = subprocess.run(["git", "-C", ROOT, *args], capture_output=True, text=True)
+        return out.stdout.strip() if out.returncode == 0 else ""
+
+    commit = git("rev-parse", "--short", "HEAD") or "unknown"
+    if git("status", "--porcelain", "--", "clothtool", "benchmarks"):
+        commit += "+"
+    return MEASURED.format(commit=commit, date=time.strftime("%Y-%m-%d", time.gmtime()),
+                           load=os.getloadavg()[0], cores=os.cpu_count(),
+                           command=f"python -m benchmarks{' --full' if FULL else ''} {benchmark}")
+
+
+def write_doc_table(doc, name, table, benchmark):
+    """Write ``table`` (Markdown) between ``<!-- begin NAME -->`` and ``<!-- end NAME -->`` in
+    ``doc`` (a path under the checkout, e.g. ``docs/solvers.md``), with the :func:`measured_line`
+    of ``benchmark`` under it. The markers stay where the doc's text puts them; a doc without
+    them is an error (tests/test_docs_measured.py checks the tables' scenes and keys)."""
+    path = os.path.join(ROOT, doc)
+    with open(path) as fh:
+        text = fh.read()
+    begin, end = f"<!-- begin {name} -->", f"<!-- end {name} -->"
+    if text.count(begin) != 1 or text.count(end) != 1:
+        raise ValueError(f"{doc}: no single {begin} … {end} block")
+    head, rest = text.split(begin)
+    _, tail = rest.split(end)
+    body = f"{begin}\n{table.rstrip()}\n\n{measured_line(benchmark)}\n{end}"
+    with open(path, "w") as fh:
+        fh.write(head + body + tail)
+    print(f"  {doc}: table {name} written")
