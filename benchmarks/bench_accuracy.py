@@ -28,7 +28,7 @@ import time
 
 import numpy as np
 
-from benchmarks.common import full_or, markdown_table, pyplot
+from benchmarks.common import full_or, markdown_table, pyplot, write_doc_table
 
 FRAMES = 15  # 0.5 s at 30 fps
 EARLY = 6  # 0.2 s: the orders there too
@@ -250,6 +250,15 @@ def run(out_dir):
                                    "newton_per_step"]),
            f"\nTotal benchmark time {time.perf_counter() - started:.0f} s.\n"]
     (out_dir / "accuracy.md").write_text("\n".join(md))
+    doc = "docs/simulate.md"
+    write_doc_table(doc, "accuracy", md[3], "accuracy")
+    write_doc_table(doc, "accuracy-cost", markdown_table(cost, [
+        "setting", "ms_per_frame", "cpu_ms_per_frame", "newton_per_step", "cg_per_step"]),
+        "accuracy")
+    write_doc_table(doc, "accuracy-stiff", markdown_table(stiff, [
+        "stretch", "setting", "from_tight_m", "from_fine_m", "drop_m"]), "accuracy")
+    write_doc_table(doc, "accuracy-starts", markdown_table(starts, [
+        "start", "stretch", "status", "final_max_stretch", "newton_per_step"]), "accuracy")
     return rows, cost, stiff, starts
 
 

@@ -22,7 +22,7 @@ from pathlib import Path
 import ipctk
 import numpy as np
 
-from benchmarks.common import markdown_table, write_csv
+from benchmarks.common import markdown_table, write_csv, write_doc_table
 from benchmarks.friction_scenes import G, SURFACES, incline_motion, turning_sphere
 from clothtool.io.ply import read_ply
 
@@ -69,4 +69,6 @@ def run(out_dir):
             "μ = tan θ − 0.1 must slide at g(sin θ − μ cos θ) (acceleration fitted to the "
             "second half of 1 s).\n\n" + markdown_table(rows, list(rows[0])) + "\n\n" + turn + "\n")
     (out_dir / "friction.md").write_text(text)
+    write_doc_table("docs/simulate.md", "friction", markdown_table(rows, list(rows[0])) + "\n"
+                    + turn, "friction")
     print(text)

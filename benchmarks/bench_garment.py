@@ -31,7 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
-from benchmarks.common import markdown_table, write_csv
+from benchmarks.common import markdown_table, write_csv, write_doc_table
 from clothtool.geometry import grid_triangles, grid_uv
 from clothtool.io.caches.obj_writer import write_obj
 
@@ -274,6 +274,10 @@ def run(out_dir):
         + markdown_table([row], columns)
         + "\n## The garment sample: a skirt sewn onto a walking mannequin "
         "(sample_data/garment.yaml)\n\n" + markdown_table([sample], list(sample)))
+    for name, got in (("garment-capsule", row), ("garment-sample", sample)):
+        write_doc_table("docs/simulate.md", name, markdown_table(
+            [{"quantity": k, "value": v} for k, v in got.items()], ["quantity", "value"]),
+            "garment")
     write_csv(Path(out_dir) / "garment.csv", [row], columns)
     write_csv(Path(out_dir) / "garment_sample.csv", [sample], list(sample))
 

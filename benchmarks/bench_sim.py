@@ -173,6 +173,13 @@ def run(out_dir="bench-results"):
                  f"{k:g} N/m: {v:g} s" for k, v in largest.items()) + ".",
              "", f"Total benchmark time {time.perf_counter() - started:.0f} s."]
     (out_dir / "sim_speed.md").write_text("\n".join(lines) + "\n")
+    from benchmarks.common import write_doc_table
+
+    keep = ("grid", "setting", "preconditioner", "tolerance", "ms_per_step_cpu", "cg_iterations",
+            "ns_per_vertex_iteration", "solver_error_mm", "max_error_mm")
+    write_doc_table("docs/simulate.md", "sim-speed", _table([{k: r[k] for k in keep}
+                                                               for r in speed]), "sim")
+    write_doc_table("docs/simulate.md", "sim-stability", _table(stability), "sim")
     with open(out_dir / "sim_stability.csv", "w", newline="") as fh:
         writer = csv.DictWriter(fh, fieldnames=list(stability[0]))
         writer.writeheader()

@@ -32,7 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
-from benchmarks.common import full_or, markdown_table, pyplot, sim_imports
+from benchmarks.common import full_or, markdown_table, pyplot, sim_imports, write_doc_table
 
 HERE = Path(__file__).resolve().parent.parent
 BASE_COMMIT = "1e6cea5"
@@ -327,4 +327,10 @@ def run(out_dir):
                     + markdown_table(dr, cols))
     text = "## Textile tests\n\n`python -m benchmarks textile`\n\n" + "\n".join(sections)
     (out_dir / "textile.md").write_text(text)
+    for name, rows, columns in (("textile-cost", cost, list(cost[0])),
+                                ("textile-membrane-cost", membrane_cost, list(membrane_cost[0])),
+                                ("textile-cantilever", cant, list(cant[0])),
+                                ("textile-hanging", hang, list(hang[0])),
+                                ("textile-drape", dr, cols)):
+        write_doc_table("docs/simulate.md", name, markdown_table(rows, columns), "textile")
     print(f"  textile benchmark in {time.perf_counter() - started:.0f} s")

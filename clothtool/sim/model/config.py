@@ -210,8 +210,8 @@ class Material(Section):
                               "that rests flat, with or without uv, panels of their own bend "
                               "or damping included; a mesh resting curved and garment "
                               "patterns per corner use `dihedral`), `dihedral` (the hinge "
-                              "model: 7–21 % soft on a grid, up to 20 % stiff on other "
-                              "meshes) or `quadratic` (its linearisation; flat rest states "
+                              "model: soft on a grid, stiff on other meshes: the "
+                              "cantilever table) or `quadratic` (its linearisation; flat rest states "
                               "only); [Textile units](#textile-units-and-tests)")
     damping_model: str = setting("frozen", choice(DAMPING_MODELS),
                                  "`frozen`: D = βK(x_n)/ĥ, the stiffness at the start of the "
@@ -220,7 +220,7 @@ class Material(Section):
                                  "dissipation potential of their change over the step, "
                                  "which no rigid motion feels (a sheet on a turntable "
                                  "follows it, a crumpled start relaxes as at small steps; "
-                                 "1.5–2.1× the CPU of `frozen`; see Time stepping)")
+                                 "more Newton steps than `frozen`; see Time stepping)")
     bending_length: float | None = setting(None, positive,
                                            "m, instead of `bend`: the cantilever test's bending "
                                            "length c, `bend` = `density` · 9.81 · c³ (giving "
@@ -229,8 +229,8 @@ class Material(Section):
                                   "`triangle` (stretch and shear per linear triangle) or "
                                   "`nodal`: warp and weft stretch on each vertex's smoothed "
                                   "metric FᵀF, shear per triangle, so the drape depends less on "
-                                  "the mesh (3.4 % → 1.3–2.3 % between a grid, a turned grid "
-                                  "and a Delaunay mesh). Needs a rest pattern per vertex (a "
+                                  "the mesh (the drape table's spread between a grid, a turned "
+                                  "grid and a Delaunay mesh). Needs a rest pattern per vertex (a "
                                   "grid, or a PLY with uv) and `solver.method: implicit`")
 
     def finish(self, given, key):
