@@ -374,6 +374,7 @@ def profile(out_dir, steps=20):
 
     # (module, kernel) → stage; each is looked up in the module that calls it
     stages = {("clothtool.sim.energies.terms", "membrane_assemble"): "membrane assembly (stretch+shear)",
+              ("clothtool.sim.energies.terms", "hessian_gradient"): "bending (hessian plate)",
               ("clothtool.sim.energies.terms", "dihedral_assemble"): "bending assembly (dihedral)",
               ("clothtool.sim.energies.terms", "quadratic_gradient"): "bending (quadratic)",
               ("clothtool.sim.linalg.blocks", "block_multiply"): "damping products",
