@@ -296,6 +296,53 @@ def test_the_frame_check_finds_a_planted_crossing_with_the_kept_candidates_or_wi
                         integ.contact.crossing(x, state.time))
 
 
+def test_the_kept_candidates_hold_every_pair_within_reach_at_every_newton_iterate(tmp_path):
+    """The candidates are kept across Newton iterations (and steps) while the vertices stay
+    within their reach: at the start and end of every Newton step's motion, every pair
+    within reach (brute force over all pairs) is among them. A 6 × 6 sheet with friction
+    falling on a plate and onto itself (folded by a pin that moves)."""
+    from test_contact import brute_force_pairs
+
+    from clothtool.sim.model.methods import make_integrator
+    from clothtool.sim.solve.contact import BarrierContact
+
+    config = load_config({
+        "mesh": {"grid": {"nx": 6, "ny": 6, "width": 0.2, "height": 0.2, "plane": "xz"}},
+        "material": {"stretch": 1000.0, "shear": 100.0, "bend": 1e-5},
+        "scene": {"colliders": [{"mesh": {"ply": write_mesh(
+            tmp_path / "plate.ply", plate(0.6, 0.6, height=-0.004)), "friction": 0.3}}],
+            "self_collision": {"thickness": 0.002, "friction": 0.2},
+            "pins": [{"vertices": [0, 6], "translate": {"velocity": [0.6, 0.0, 0.0]}}]},
+        "solver": SOLVER, "time": {"fps": 60, "frames": 1}, "output": {"dir": str(tmp_path)}})
+    model = build_model(config)
+    integ = make_integrator(model, config.solver, config.step)
+    contact = integ.contact
+    sc = contact.scene
+    seen = {"checks": 0, "pairs": 0}
+
+    def held(y):
+        kept = {tuple(st) for st in contact.stencils}
+        want = brute_force_pairs(y, sc.faces, sc.edges, sc.obstacle, True, contact.reach)
+        assert want <= kept
+        seen["checks"] += 1
+        seen["pairs"] += len(want)
+
+    free_step = BarrierContact._free_step
+
+    def checked(self):
+        step = free_step(self)
+        held(self.y)
+        held(self.y + self.dy)
+        return step
+
+    contact._free_step = checked.__get__(contact)
+    state = model.initial_state()
+    for _ in range(12):
+        integ.step(state)
+    assert seen["checks"] >= 24 and seen["pairs"] > 100
+    assert contact.crossing(state.x, state.time) is None
+
+
 # ---------------------------------------------------------------- scenes
 
 

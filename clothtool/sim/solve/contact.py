@@ -116,8 +116,6 @@ class BarrierContact:
         self.geometry = scene.geometry
         # analytic colliders (planes, and vertices with a radius: spheres, capsules)
         self.shapes = len(scene.planes) > 0 or bool(np.any(scene.geometry[1] > 0.0))
-        self.inv_mass = np.zeros(total)
-        self.inv_mass[:n] = np.where(free, 1.0 / mass, 0.0)
         self.free_mass = np.where(free, mass, 0.0)
         self.piece, self.n_pieces = cloth_pieces(scene.faces[:scene.n_cloth_faces], n)
         self.y = np.zeros((total, 3))  # cloth then collider positions
