@@ -251,6 +251,98 @@ def test_cloth_starting_inside_the_margin_or_crossing_is_refused(tmp_path):
             run(tmp_path, {"colliders": [shape]}, frames=1)
 
 
+def _stepped(tmp_path, collider):
+    """An integrator of a still sheet (no gravity) 1.5 mm above a collider after one step,
+    and its state."""
+    from clothtool.sim.model.methods import make_integrator
+
+    config = load_config({
+        "mesh": {"grid": {"nx": 9, "ny": 9, "width": 0.4, "height": 0.4, "plane": "xz"}},
+        "material": {"stretch": 1000.0, "shear": 100.0, "bend": 1e-5},
+        "scene": {"gravity": [0, 0, 0], "colliders": [collider],
+                  "self_collision": {"thickness": 0.002}},
+        "solver": SOLVER, "time": {"fps": 60, "frames": 1}, "output": {"dir": str(tmp_path)}})
+    model = build_model(config)
+    integ = make_integrator(model, config.solver, config.step)
+    state = model.initial_state()
+    integ.step(state)
+    return integ, state
+
+
+def test_the_frame_check_finds_a_planted_crossing_with_the_kept_candidates_or_without(tmp_path):
+    """A cloth vertex planted inside a sphere is found whether the step's kept candidates
+    hold the planted positions (moved by less than their reach) or a broad phase runs (moved
+    far); a cloth triangle planted through a mesh by the exact test; none before planting."""
+    from clothtool.sim.solve.contact import _within
+
+    top = -0.0015  # the sphere's top and the plate, under the sheet at y = 0
+    integ, state = _stepped(tmp_path, {"sphere": {"center": [0, top - 0.1, 0], "radius": 0.1}})
+    contact = integ.contact
+    assert contact.crossing(state.x, state.time) is None
+    centre = int(np.argmin(np.linalg.norm(state.x[:, [0, 2]], axis=1)))
+    for depth, held in ((0.0004, True), (0.03, False)):
+        x = state.x.copy()
+        x[centre, 1] = top - depth
+        y = contact._positions(x, state.time)
+        assert _within(y, np.zeros_like(y), contact._ref, contact._rho) == held
+        assert re.fullmatch(r"cloth (triangle|vertex) \d+ crosses scene.colliders\[0\].sphere",
+                            contact.crossing(x, state.time))
+    integ, state = _stepped(tmp_path, {"mesh": {"ply": write_mesh(
+        tmp_path / "plate.ply", plate(0.2, 0.2, height=top))}})
+    assert integ.contact.crossing(state.x, state.time) is None
+    x = state.x.copy()
+    x[centre, 1] = -0.05
+    assert re.fullmatch(r"cloth triangle \d+ crosses scene.colliders\[0\].mesh triangle \d+",
+                        integ.contact.crossing(x, state.time))
+
+
+def test_the_kept_candidates_hold_every_pair_within_reach_at_every_newton_iterate(tmp_path):
+    """The candidates are kept across Newton iterations (and steps) while the vertices stay
+    within their reach: at the start and end of every Newton step's motion, every pair
+    within reach (brute force over all pairs) is among them. A 6 × 6 sheet with friction
+    falling on a plate and onto itself (folded by a pin that moves)."""
+    from test_contact import brute_force_pairs
+
+    from clothtool.sim.model.methods import make_integrator
+    from clothtool.sim.solve.contact import BarrierContact
+
+    config = load_config({
+        "mesh": {"grid": {"nx": 6, "ny": 6, "width": 0.2, "height": 0.2, "plane": "xz"}},
+        "material": {"stretch": 1000.0, "shear": 100.0, "bend": 1e-5},
+        "scene": {"colliders": [{"mesh": {"ply": write_mesh(
+            tmp_path / "plate.ply", plate(0.6, 0.6, height=-0.004)), "friction": 0.3}}],
+            "self_collision": {"thickness": 0.002, "friction": 0.2},
+            "pins": [{"vertices": [0, 6], "translate": {"velocity": [0.6, 0.0, 0.0]}}]},
+        "solver": SOLVER, "time": {"fps": 60, "frames": 1}, "output": {"dir": str(tmp_path)}})
+    model = build_model(config)
+    integ = make_integrator(model, config.solver, config.step)
+    contact = integ.contact
+    sc = contact.scene
+    seen = {"checks": 0, "pairs": 0}
+
+    def held(y):
+        kept = {tuple(st) for st in contact.stencils}
+        want = brute_force_pairs(y, sc.faces, sc.edges, sc.obstacle, True, contact.reach)
+        assert want <= kept
+        seen["checks"] += 1
+        seen["pairs"] += len(want)
+
+    free_step = BarrierContact._free_step
+
+    def checked(self):
+        step = free_step(self)
+        held(self.y)
+        held(self.y + self.dy)
+        return step
+
+    contact._free_step = checked.__get__(contact)
+    state = model.initial_state()
+    for _ in range(12):
+        integ.step(state)
+    assert seen["checks"] >= 24 and seen["pairs"] > 100
+    assert contact.crossing(state.x, state.time) is None
+
+
 # ---------------------------------------------------------------- scenes
 
 

@@ -12,6 +12,8 @@ kernels over one vertex array that holds the cloth and the colliders (a boolean
 - ``distance``: closest points of vertex–triangle and edge–edge pairs;
 - ``barrier``: the barrier energy, its gradient and a Gauss–Newton Hessian;
 - ``ccd``: the collision-free step fraction (additive CCD);
+- ``friction``: IPC's smoothed Coulomb friction, lagged;
+- ``pieces``: Newton's stick–slip residual test on the rigid motions of each piece of cloth;
 - ``intersect``: an exact triangle-mesh intersection test, the independent check;
 - ``projection``: planes and spheres by projection, for the methods without barrier contact.
 """

@@ -75,11 +75,11 @@ def _cell_range(lo, hi, origin, cell, dims):
 @njit(cache=True)
 def build_grid(lo, hi, cell):
     """Bin boxes (lo, hi) into cells of size ≥ ``cell``:
-    (origin, cell, dims, start, items, item_lo, item_hi).
+    (origin, cell, dims, start, items, item_lo, item_hi, item_cell).
 
     Items of cell c are items[start[c]:start[c+1]], their boxes item_lo and item_hi at the
-    same places (copied, so that a cell's boxes are read in order); cells are numbered x
-    fastest.
+    same places (copied, so that a cell's boxes are read in order), and the cell (i, j, k)
+    of each box's low corner in item_cell; cells are numbered x fastest.
     The cell size grows until there are at most MAX_CELLS_PER_BOX cells per box.
     """
     m = lo.shape[0]
@@ -115,6 +115,7 @@ def build_grid(lo, hi, cell):
     items = np.empty(start[n_cells], dtype=np.int64)
     item_lo = np.empty((start[n_cells], 3))
     item_hi = np.empty((start[n_cells], 3))
+    item_cell = np.empty((start[n_cells], 3), dtype=np.int64)
     fill = start[:-1].copy()
     for e in range(m):
         i0, i1, j0, j1, k0, k1 = _cell_range(lo[e], hi[e], origin, cell, dims)
@@ -127,8 +128,9 @@ def build_grid(lo, hi, cell):
                     for k in range(3):
                         item_lo[q, k] = lo[e, k]
                         item_hi[q, k] = hi[e, k]
+                    item_cell[q, 0], item_cell[q, 1], item_cell[q, 2] = i0, j0, k0
                     fill[c] += 1
-    return origin, cell, dims, start, items, item_lo, item_hi
+    return origin, cell, dims, start, items, item_lo, item_hi, item_cell
 
 
 @njit(cache=True)
@@ -152,7 +154,7 @@ def box_pairs(alo, ahi, elem_a, blo, bhi, elem_b, r, obstacle, self_contact, sam
     ``same``: both sets are the same elements; each unordered pair comes once, a < b.
     """
     cell = max(_mean_extent(blo, bhi), _mean_extent(alo, ahi) + 2.0 * r)
-    origin, cell, dims, start, items, item_lo, item_hi = build_grid(blo, bhi, cell)
+    origin, cell, dims, start, items, item_lo, item_hi, item_cell = build_grid(blo, bhi, cell)
     out = np.empty((max(16, 4 * alo.shape[0]), 2), dtype=np.int64)
     n = 0
     qlo = np.empty(3)
@@ -174,10 +176,11 @@ def box_pairs(alo, ahi, elem_a, blo, bhi, elem_b, r, obstacle, self_contact, sam
                                 or item_lo[q, 1] > qhi[1] or item_hi[q, 1] < qlo[1]
                                 or item_lo[q, 2] > qhi[2] or item_hi[q, 2] < qlo[2]):
                             continue
-                        # each pair once: in the cell of the low corner of the boxes' overlap
-                        if (int(np.floor((max(qlo[0], item_lo[q, 0]) - origin[0]) / cell)) != ii
-                                or int(np.floor((max(qlo[1], item_lo[q, 1]) - origin[1]) / cell)) != jj
-                                or int(np.floor((max(qlo[2], item_lo[q, 2]) - origin[2]) / cell)) != kk):
+                        # each pair once: in the cell of the low corner of the boxes' overlap,
+                        # the larger of the two low corners' cells (floor is monotone; an
+                        # item's low corner is in the grid, so the query's clip at 0 is moot)
+                        if (max(i0, item_cell[q, 0]) != ii or max(j0, item_cell[q, 1]) != jj
+                                or max(k0, item_cell[q, 2]) != kk):
                             continue
                         if not _allowed(a, b, elem_a, elem_b, obstacle, self_contact):
                             continue

@@ -26,7 +26,9 @@ Friction (Coulomb, coefficient of the collider or ``self_collision.friction``) i
 smoothed dissipative potential (:mod:`clothtool.contact.friction`) in the same
 minimisation: its pairs, normal forces and tangent bases are lagged from the start of
 the step and re-lagged at Newton's solution until the friction force they give changes
-the velocities by less than ``solver.newton_tolerance``.
+the velocities by less than ``solver.newton_tolerance``; that change, and Newton's residual,
+are measured on the rigid motions of each piece of cloth against its mass and the rest
+against Newton's diagonal blocks (:mod:`clothtool.contact.pieces`).
 
 Candidate pairs are found for a reference configuration, the midpoint of the motion
 expected of each vertex in the step (h v, or its pin's or collider's own), and a reach ρ_v
@@ -47,6 +49,7 @@ from clothtool.contact.ccd import collision_free_step, near_pairs
 from clothtool.contact.friction import (bound_reversed_slips, friction_assemble, friction_energy,
                                        friction_lag, reference_slips)
 from clothtool.contact.intersect import intersecting_pairs
+from clothtool.contact.pieces import cloth_pieces, slide_velocity
 from clothtool.errors import InputError, NumericalError
 from clothtool.sim.linalg.pairs import pair_operator, pairs_add_diagonal, pairs_coupling
 
@@ -111,8 +114,10 @@ class BarrierContact:
         self.kappa = KAPPA * max(float(np.mean(mass)) / (h * h), stiffness)
         self.reach = scene.reach
         self.geometry = scene.geometry
-        self.inv_mass = np.zeros(total)
-        self.inv_mass[:n] = np.where(free, 1.0 / mass, 0.0)
+        # analytic colliders (planes, and vertices with a radius: spheres, capsules)
+        self.shapes = len(scene.planes) > 0 or bool(np.any(scene.geometry[1] > 0.0))
+        self.free_mass = np.where(free, mass, 0.0)
+        self.piece, self.n_pieces = cloth_pieces(scene.faces[:scene.n_cloth_faces], n)
         self.y = np.zeros((total, 3))  # cloth then collider positions
         self.dy = np.zeros((total, 3))
         self.moving = scene.colliders is not None and scene.colliders.moving
@@ -193,7 +198,10 @@ class BarrierContact:
 
     def crossing(self, x, t):
         """A description of the first crossing of cloth positions x at time t (a cloth
-        triangle through a collider, or through another with self-collision), or None."""
+        triangle through a collider, or through another with self-collision), or None. The
+        exact edge–triangle test covers the meshes; an analytic collider crosses where its
+        distance to a pair's cloth side is ≤ 0, which only pairs within reach can have: those of
+        the kept candidates while they hold y, else of a broad phase at y."""
         sc = self.scene
         y = self._positions(x, t)
         pairs = intersecting_pairs(y, sc.faces, sc.obstacle, sc.edges)
@@ -206,7 +214,11 @@ class BarrierContact:
             if tri is None:  # a collider edge through a cloth triangle
                 return f"cloth triangle {face} crosses {self._collider_name(edge[0], None)}"
             return f"cloth triangle {tri} crosses {self._triangle_name(face)}"
-        stencils = self._stencils(y, np.zeros_like(y), np.zeros(len(y)))
+        if not self.shapes:
+            return None
+        still = np.zeros_like(y)
+        held = self._ref is not None and _within(y, still, self._ref, self._rho)
+        stencils = self.stencils if held else self._stencils(y, still, np.zeros(len(y)))
         k = _first_shape_crossing(y, stencils, self.geometry[1], sc.obstacle)
         if k < 0:
             return None
@@ -321,19 +333,25 @@ class BarrierContact:
                           blocks)
         return grad
 
-    def relag(self, x):
+    def relag(self, x, diag):
         """Re-lag the friction pairs at the cloth positions x; returns how much that changes
-        the friction force, as the largest velocity change ĥ‖ΔF_v‖/m_v it makes (m/s); 0
-        without friction."""
+        the friction force, as the velocity change within the step that the change makes
+        (:meth:`stick_slip`, with Newton's diagonal blocks ``diag``); 0 without friction."""
         if not self.friction:
             return 0.0
         n = self.scene.n_cloth
         before = self._friction_gradient(x)
         self.y[:n] = x
         self._lag(self.y, (x - self.base[:n]) / self.h_eff)
-        change = self._friction_gradient(x) - before
-        return float(np.max(np.sqrt(np.sum(change * change, axis=1)) * self.h_eff
-                            * self.inv_mass[:n]))
+        return self.stick_slip(x, self._friction_gradient(x) - before, diag, self.h_eff)
+
+    def stick_slip(self, x, residual, diag, h_eff):
+        """The velocity change (m/s) within the step that a residual force (N, 3) at cloth
+        positions x makes: through the rigid motions of each piece of cloth against its mass,
+        the rest against the diagonal blocks diag (N, 3, 3) of Newton's matrix
+        (:func:`clothtool.contact.pieces.slide_velocity`)."""
+        return slide_velocity(x, residual, self.free_mass, diag, h_eff, self.piece,
+                              self.n_pieces)
 
     def assemble(self, x, grad, matrix):
         """E_c + D at the cloth positions x; adds their gradient into grad (N, 3), the

@@ -244,7 +244,8 @@ class Contact(Term):
     starts_at_state = True
 
     def __init__(self, contact, mass):
-        self.contact, self.mass, self.h = contact, mass, contact.h
+        del mass  # the stick–slip test reads the contact's own masses of the free vertices
+        self.contact, self.h = contact, contact.h
 
     def begin(self, stage):
         self.contact.h = stage.duration
@@ -257,6 +258,7 @@ class Contact(Term):
     def assemble(self, x, grad, matrix):
         energy = self.contact.assemble(x, grad, matrix)
         self.operator = self.contact.operator
+        self.x, self.matrix = x.copy(), matrix  # for settled and relag (x moves on)
         return energy
 
     def along(self, x, dx):
@@ -275,15 +277,21 @@ class Contact(Term):
         return self.contact.colliders_behind()
 
     def settled(self, free_grad, h_eff):
-        """Friction's stick stiffness 2μλ/(ĥε_v) makes the Newton steps of a sheet that starts
-        sliding tiny: settled only once the residual force would change no velocity by more
-        than the tolerance within the step either (returns that velocity change)."""
+        """Friction's stick stiffness 2μλ/(ĥε_v) makes the Newton steps of cloth that starts
+        sliding tiny: settled only once the residual would change the velocities by no more
+        than the tolerance within the step either, the rigid motion of each piece of cloth
+        against its mass and the rest against Newton's diagonal blocks (returns that change,
+        :meth:`~clothtool.sim.solve.contact.BarrierContact.stick_slip`)."""
         if not self.contact.n_lag:
             return 0.0
-        return h_eff * float(np.max(np.sqrt(np.sum(free_grad * free_grad, axis=1)) / self.mass))
+        return self.contact.stick_slip(self.x, free_grad, self._diagonal(), h_eff)
 
     def relag(self, x):
-        return self.contact.relag(x)
+        return self.contact.relag(x, self._diagonal())
+
+    def _diagonal(self):
+        """The diagonal blocks (N, 3, 3) of Newton's matrix at its last assembly."""
+        return self.matrix.values[self.matrix.pattern.diag]
 
     def finish(self, x, report):
         self.contact.finish(x)
