@@ -23,7 +23,7 @@ OPTIONS = {"fields": "--fields", "dtype": "--dtype", "compression": "--compressi
            "pairs": "--pairs", "reference": "--reference", "uv_scale": "--uv-scale",
            "vertex_average": "--vertex-average", "kabsch": "--kabsch", "pair": "--pair",
            "field": "--field", "component": "--component", "color_range": "--range",
-           "overrides": "--set", "fps": "--fps", "dpi": "--dpi"}
+           "overrides": "--set", "fps": "--fps", "dpi": "--dpi", "kes": "--kes"}
 """Library keyword argument → the option that sets it, for the messages of InputError."""
 
 EXIT_CODES_HELP = """\b
@@ -391,6 +391,40 @@ def init_config():
     from clothtool.config_tools import DEFAULT_CONFIG
 
     click.echo(DEFAULT_CONFIG, nl=False)
+
+
+FABRIC_EPILOG = """\b
+Examples:
+  clothtool fabric --list
+      the measured fabrics (material.preset)
+  clothtool fabric --preset 11oz-black-denim
+      a preset's material block, in SI and in a lab's units
+  clothtool fabric --kes B=0.16,0.20 --kes W=38 --kes G=0.9 --kes EMT=4.1,7.5
+      KES-F values (warp, weft) as a material block
+  clothtool fabric sheet.yaml
+      a config's material in a lab's units
+
+""" + EXIT_CODES_HELP
+
+
+@main.command(epilog=FABRIC_EPILOG)
+@click.argument("config", required=False, type=click.Path(dir_okay=False))
+@click.option("--preset", default=None, metavar="NAME", help="A measured fabric (see --list).")
+@click.option("--kes", multiple=True, metavar="NAME=VALUE",
+              help="A KES-F value: B (gf·cm²/cm), G (gf/cm·deg), EMT (%), W (mg/cm²); "
+                   "B and EMT may be WARP,WEFT.")
+@click.option("--set", "settings", multiple=True, metavar="KEY=VALUE",
+              help="Change a config key (repeatable).")
+@click.option("--list", "show_list", is_flag=True, help="List the measured fabrics and exit.")
+def fabric(config, preset, kes, settings, show_list):
+    """Print a material block (SI) and what it is in a lab's units (KES-F, ASTM D1388)."""
+    from clothtool.sim import fabrics, lab_units
+
+    if show_list:
+        click.echo("\n".join(fabrics.listing()))
+        return
+    material = lab_units.material_of(config, preset=preset, kes=kes, overrides=settings)
+    click.echo(lab_units.report(material))
 
 
 SIMULATE_EPILOG = """\b

@@ -176,6 +176,40 @@ class MeshSpec(Section):
 # ---------------------------------------------------------------------------- material
 
 
+def one_word(value, key):
+    """A non-empty string (checked against its table later)."""
+    if not isinstance(value, str) or not value:
+        raise type_error(key, "a name", value)
+    return value
+
+
+KES_KEYS = {"density": "W", "bend": "B", "shear": "G", "stretch": "EMT"}
+
+
+@dataclass(frozen=True)
+class Kes(Section):
+    """KES-F values (Kawabata): B, G, EMT, W in the lab's units, each optional; B and EMT one
+    number or [warp, weft]."""
+
+    B: float | tuple | None = setting(None, pair_or_number(exclusive=True),
+                                      "gf·cm²/cm, bending rigidity: `bend` = 9.80665e-5 B N·m "
+                                      "(warp and weft: their geometric mean)")
+    G: float | None = setting(None, positive,
+                              "gf/(cm·deg), shear stiffness: `shear` = 56.19 G N/m")
+    EMT: float | tuple | None = setting(None, pair_or_number(exclusive=True),
+                                        "%, strain at 500 gf/cm: `stretch` = 490.33/(EMT/100) "
+                                        "N/m, the secant (warp, weft)")
+    W: float | None = setting(None, positive, "mg/cm², mass per area: `density` = 0.01 W kg/m²")
+
+    def finish(self, given, key):
+        if not given:
+            raise InputError(f"{key}: give at least one of B, G, EMT and W")
+        for name in given:
+            if getattr(self, name) is None:
+                raise InputError(f"{key}.{name}: missing value")
+        return self
+
+
 @dataclass(frozen=True)
 class Material(Section):
     """Areal density (kg/m²), membrane stiffnesses (N/m), bending stiffness (N·m), damping (s).
@@ -186,6 +220,9 @@ class Material(Section):
     ``membrane_model``: stretch and shear per ``triangle`` (linear elements), or ``nodal``:
     warp and weft stretch on each vertex's smoothed metric FᵀF (which locks less when the
     sheet bends off the mesh's lines) and shear per triangle; implicit method only.
+    ``preset`` (a measured fabric, :mod:`clothtool.sim.fabrics`) and ``kes`` (KES-F values,
+    :mod:`clothtool.sim.lab_units`) fill the keys the section does not give; ``kes`` wins
+    over ``preset``.
     """
 
     density: float = setting(0.2, positive, "kg/m²")
@@ -232,14 +269,37 @@ class Material(Section):
                                   "the mesh (3.4 % → 1.3–2.3 % between a grid, a turned grid "
                                   "and a Delaunay mesh). Needs a rest pattern per vertex (a "
                                   "grid, or a PLY with uv) and `solver.method: implicit`")
+    preset: str | None = setting(None, one_word,
+                                 "a measured fabric (Wang et al. 2011, as ARCSim ships them): "
+                                 "its density, stretch, shear and bend fill the keys not given "
+                                 "([Measured fabrics](#measured-fabrics-materialpreset))")
+    kes: Kes | None = section(Kes, optional=True,
+                              doc="KES-F values: they fill density, bend, shear and stretch "
+                                  "(giving a key and its KES value is an error; "
+                                  "[Textile units](#textile-units-and-tests))")
 
     def finish(self, given, key):
-        """``bend`` = ρ g c³ from ``bending_length`` c and ``density`` ρ (not both bend and c)."""
+        """The keys not given from ``preset``, then from ``kes``; ``bend`` = ρ g c³ from
+        ``bending_length`` c and ``density`` ρ (not both bend and c)."""
+        from clothtool.sim import fabrics, lab_units
+
+        values = {}
+        if self.preset is not None:
+            values = {k: v for k, v in fabrics.preset(self.preset, f"{key}.preset").items()
+                      if k not in given and not (k == "bend" and self.bending_length)}
+        if self.kes is not None:
+            for name, value in lab_units.from_kes(as_dict(self.kes)).items():
+                if name in given:
+                    raise InputError(f"{key}: give one of {name} and kes.{KES_KEYS[name]}, "
+                                     "not both")
+                values[name] = value
+        material = replace(self, **values)
         if self.bending_length is None:
-            return self
-        if "bend" in given:
-            raise InputError(f"{key}: give one of bend (N·m) and bending_length (m), not both")
-        return replace(self, bend=self.density * STANDARD_GRAVITY * self.bending_length ** 3)
+            return material
+        if "bend" in given or (self.kes is not None and self.kes.B is not None):
+            raise InputError(f"{key}: give one of bend (N·m), kes.B and bending_length (m)")
+        return replace(material,
+                       bend=material.density * STANDARD_GRAVITY * self.bending_length ** 3)
 
 
 @dataclass(frozen=True)
@@ -258,6 +318,17 @@ class PanelMaterial(Section):
     faces: tuple | None = setting(None, vertex_list,
                                   "the panel's triangles, when NAME is not an OBJ group or "
                                   "material")
+    preset: str | None = setting(None, one_word,
+                                 "as `material.preset`: the fabric's density, stretch, shear "
+                                 "and bend for the panel's keys not given")
+
+    def finish(self, given, key):
+        if self.preset is None:
+            return self
+        from clothtool.sim import fabrics
+
+        return replace(self, **{k: v for k, v in fabrics.preset(self.preset, f"{key}.preset")
+                                .items() if k not in given})
 
 
 @listing(PanelMaterial, ".NAME")
@@ -777,6 +848,8 @@ def _record(value):
                        else f.default)
             if f.name == "bending_length" and getattr(value, "bend", None) is not None:
                 continue  # resolved into bend
+            if f.name in ("preset", "kes"):
+                continue  # resolved into the keys they fill
             if f.name != "source" and (v != default or f.name in getattr(value, "required", ())):
                 out[f.name] = ([{c.kind: _record(c)} for c in v] if f.name == "colliders"
                                else _record(v))

@@ -1,0 +1,207 @@
+"""Measured fabric presets (``material.preset``) and a lab's units in and out
+(``material.kes``, ``clothtool fabric``), against hand calculations.
+
+- ARCSim's 11oz black denim converted by hand (stretch 2C, shear C₃₃, bend k_e/4);
+- every preset positive definite; the one fabric whose measured tensor is not, named;
+- ARCSim's hinge energy on a rolled grid and an equilateral mesh: k_e/4 of flexural rigidity;
+- KES-F B, G, EMT, W and ASTM D1388's c = (B/W)^(1/3) in the lab's own units;
+- a preset config runs; bad input is one line and exit code 2.
+"""
+
+import math
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from clothtool.cli import main
+from clothtool.errors import InputError
+from clothtool.geometry import dihedral_angles, hinges
+from clothtool.sim import fabrics, lab_units
+from clothtool.sim.model.config import load_config, resolved_yaml
+from clothtool.sim.textile import strip
+
+
+def material(**keys):
+    return load_config({"mesh": {"grid": {"nx": 4, "ny": 4}}, "material": keys}).material
+
+
+# ---------------------------------------------------------------------------- presets
+
+
+def test_denim_by_hand():
+    """materials/11oz-black-denim.json: density 0.324, stretching row 0 (205.352005,
+    10.234077, 1013.88629, 53.387184), bending column 0 (64.196457, 73.384567, 96.951576)e-6.
+    stretch = 2·205.352005 = 410.70401 and 2·1013.88629 = 2027.77258 N/m; shear 53.387184;
+    B_u = 96.951576e-6/4 = 24.237894e-6, B_v = 64.196457e-6/4 = 16.049114e-6 N·m,
+    bend = √(24.237894 · 16.049114)e-6 = √389.0 e-6 = 19.7230e-6 N·m."""
+    m = material(preset="11oz-black-denim")
+    assert m.density == 0.324
+    assert m.stretch == pytest.approx((410.70401, 2027.77258), rel=1e-12)
+    assert m.shear == pytest.approx(53.387184, rel=1e-12)
+    assert m.bend == pytest.approx(19.7230e-6, rel=2e-5)
+    assert fabrics.rigidities("11oz-black-denim") == pytest.approx(
+        (24.237894e-6, 73.384567e-6 / 4, 16.049114e-6), rel=1e-7)
+
+
+@pytest.mark.parametrize("name", fabrics.PRESETS)
+def test_every_preset_is_positive_definite(name):
+    """Our stretch and shear energy ½(k_u ε_u² + k_v ε_v² + k_h γ²) is positive definite when
+    its three stiffnesses are; the bend and density are positive."""
+    m = material(preset=name)
+    assert min(m.stretch) > 0 and m.shear > 0 and m.bend > 0 and m.density > 0
+    c11, c12, c22, c33 = fabrics.ARCSIM[name][3]
+    tensor = np.array([[c11, c12], [c12, c22]])
+    measured_pd = np.linalg.eigvalsh(tensor).min() > 0
+    assert (fabrics.coupling(name) is not None) == measured_pd
+    assert measured_pd == (name != "navy-sparkle-sweat")  # the one the docs name
+
+
+def test_a_presets_keys_are_overridden_one_by_one():
+    m = material(preset="royal-target", shear=80.0, damping=0.05)
+    assert m.shear == 80.0 and m.damping == 0.05
+    assert m.density == 0.22 and m.stretch == pytest.approx((2 * 2016.55456, 2 * 2034.97644))
+    c = material(preset="royal-target", bending_length=0.03)
+    assert c.bend == pytest.approx(0.22 * 9.81 * 0.03 ** 3)  # c with the preset's density
+
+
+def test_a_preset_reads_back_from_its_resolved_yaml(tmp_path):
+    import yaml
+
+    config = load_config({"mesh": {"grid": {"nx": 4, "ny": 4}},
+                          "material": {"preset": "gray-interlock", "shear": 20}})
+    again = load_config(yaml.safe_load(resolved_yaml(config)))
+    assert again.material.stretch == config.material.stretch
+    assert again.material.shear == 20 and again.material.bend == config.material.bend
+
+
+def test_a_panel_takes_a_preset():
+    config = load_config({"mesh": {"grid": {"nx": 4, "ny": 4}},
+                          "materials": {"cuff": {"preset": "ivory-rib-knit", "bend": 2e-5,
+                                                 "faces": [0, 1]}}})
+    cuff = config.materials["cuff"]
+    assert cuff.density == 0.276 and cuff.shear == pytest.approx(83.175644)
+    assert cuff.bend == 2e-5
+
+
+def test_unknown_preset_lists_the_names():
+    with pytest.raises(InputError) as err:
+        material(preset="denim")
+    message = str(err.value)
+    assert "\n" not in message and "material.preset" in message
+    assert all(name in message for name in fabrics.PRESETS)
+
+
+def arcsim_hinge_rigidity(uv, faces, kappa=5.0):
+    """ARCSim's hinge energy Σ k_e ‖e‖²θ²/(8(A₁+A₂)) (k_e = 1) of the pattern rolled onto a
+    cylinder of curvature κ along u, over κ²/2 × the area: the rigidity per unit k_e."""
+    x = np.stack([np.sin(kappa * uv[:, 0]) / kappa, uv[:, 1],
+                  (1.0 - np.cos(kappa * uv[:, 0])) / kappa], axis=1)
+    h, pair = hinges(faces, len(uv))
+    e1 = uv[faces[:, 1]] - uv[faces[:, 0]]
+    e2 = uv[faces[:, 2]] - uv[faces[:, 0]]
+    area = 0.5 * np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0])
+    theta = dihedral_angles(x, h)
+    a_pair = area[pair[:, 0]] + area[pair[:, 1]]
+    length2 = np.sum((uv[h[:, 0]] - uv[h[:, 1]]) ** 2, axis=1)
+    energy = np.sum(length2 * theta ** 2 / (8.0 * a_pair))
+    return energy / (kappa ** 2 / 2 * area.sum())
+
+
+def test_arcsim_hinges_store_a_quarter_of_ke():
+    """On clothtool's grid and on an equilateral mesh (60 cells a side; the missing boundary
+    hinges take 1–3 %) a rolled sheet stores (k_e/4) κ²/2 per area: k_e excludes the 1/4."""
+    uv, faces, _ = strip(0.6, 0.6, 0.01, "grid", clamp=False)
+    assert arcsim_hinge_rigidity(uv, faces) == pytest.approx(0.25, rel=0.03)
+    from scipy.spatial import Delaunay
+
+    n, h = 60, 0.01
+    j, i = np.mgrid[0:n, 0:n]
+    pts = np.stack([(i + 0.5 * (j % 2)) * h, j * h * math.sqrt(3) / 2], axis=-1).reshape(-1, 2)
+    assert arcsim_hinge_rigidity(pts, Delaunay(pts).simplices.astype(np.int64)) == \
+        pytest.approx(0.25, rel=0.03)
+
+
+def test_a_preset_config_runs(tmp_path):
+    from clothtool.sim.api import simulate
+
+    result = simulate({"mesh": {"grid": {"nx": 8, "ny": 8, "width": 0.3, "height": 0.3}},
+                       "material": {"preset": "11oz-black-denim"},
+                       "scene": {"pins": ["top_corners"]}, "time": {"frames": 3}},
+                      output_dir=tmp_path / "out", progress=False)
+    assert len(list((tmp_path / "out").glob("frame_*.ply"))) == 4
+    assert result is not None
+
+
+# ---------------------------------------------------------------------------- lab units
+
+
+def test_kumari_khurana_bending_rigidity():
+    """B 0.144 and 0.227 gf·cm²/cm: × 9.80665e-3 N × 1e-2 m = 1.412e-5 and 2.226e-5 N·m."""
+    assert material(kes={"B": 0.144}).bend == pytest.approx(1.41216e-5, rel=1e-5)
+    assert material(kes={"B": 0.227}).bend == pytest.approx(2.22611e-5, rel=1e-5)
+
+
+def test_kes_values_by_hand():
+    """G 1 gf/(cm·deg) = 0.980665 N/m per (π/180) rad = 56.1879 N/m; EMT 5 % at 500 gf/cm
+    (490.3325 N/m): 9806.65 N/m; W 25 mg/cm² = 0.25 kg/m²; B warp 0.16, weft 0.25 →
+    √0.04 = 0.2 gf·cm²/cm."""
+    m = material(kes={"G": 1.0, "EMT": [5.0, 10.0], "W": 25, "B": [0.16, 0.25]})
+    assert m.shear == pytest.approx(56.1879, rel=1e-5)
+    assert m.stretch == pytest.approx((9806.65, 4903.325), rel=1e-9)
+    assert m.density == pytest.approx(0.25, rel=1e-12)
+    assert m.bend == pytest.approx(0.2 * 9.80665e-5, rel=1e-12)
+
+
+def test_bending_length_in_the_labs_units():
+    """ASTM D1388: G = W c³ in mg·cm with W in mg/cm²: B 0.1 gf·cm²/cm = 100 mg·cm and
+    W 20 mg/cm² give c = 5^(1/3) = 1.70998 cm (g 9.81 against the gram-force's 9.80665:
+    0.01 % apart)."""
+    lab = lab_units.to_lab(material(kes={"B": 0.1, "W": 20}))
+    assert lab["bending length"] == pytest.approx(5 ** (1 / 3), rel=2e-4)
+    assert lab["W"] == pytest.approx(20) and lab["grams per m2"] == pytest.approx(200)
+
+
+@settings(max_examples=50, deadline=None)
+@given(b=st.floats(0.01, 2.0), g=st.floats(0.05, 5.0), emt=st.floats(0.5, 60.0),
+       w=st.floats(5.0, 80.0))
+def test_kes_in_and_out_agree(b, g, emt, w):
+    lab = lab_units.to_lab(material(kes={"B": b, "G": g, "EMT": emt, "W": w}))
+    assert lab["B"] == pytest.approx(b, rel=1e-12) and lab["G"] == pytest.approx(g, rel=1e-12)
+    assert lab["W"] == pytest.approx(w, rel=1e-12)
+    assert lab["EMT"] == pytest.approx((emt, emt), rel=1e-12)
+
+
+def test_kes_and_the_key_it_fills_not_both():
+    with pytest.raises(InputError, match="one of bend and kes.B"):
+        material(kes={"B": 0.2}, bend=1e-5)
+    with pytest.raises(InputError, match="bending_length"):
+        material(kes={"B": 0.2}, bending_length=0.02)
+
+
+def test_fabric_command_prints_a_block_that_loads(tmp_path):
+    import yaml
+
+    out = CliRunner().invoke(main, ["fabric", "--kes", "B=0.16,0.25", "--kes", "W=38",
+                                    "--kes", "G=0.9", "--kes", "EMT=4.1,7.5"])
+    assert out.exit_code == 0, out.output
+    block = yaml.safe_load(out.output)["material"]
+    assert block["density"] == pytest.approx(0.38)
+    assert block["bend"] == pytest.approx(0.2 * 9.80665e-5, rel=1e-5)
+    assert "B 0.2 gf·cm²/cm" in out.output
+    listed = CliRunner().invoke(main, ["fabric", "--list"])
+    assert listed.exit_code == 0 and len(listed.output.splitlines()) == len(fabrics.PRESETS)
+
+
+@pytest.mark.parametrize("args, words", [
+    (["--kes", "B=-0.1"], "material.kes.B must be > 0"),
+    (["--kes", "B"], "--kes 'B': expected NAME=VALUE"),
+    (["--set", "material.kes.W=null"], "material.kes.W: missing value"),
+    (["--preset", "denim"], "unknown fabric 'denim'"),
+])
+def test_fabric_command_bad_input(args, words):
+    out = CliRunner().invoke(main, ["fabric", *args])
+    assert out.exit_code == 2
+    assert words in out.output and len(out.output.strip().splitlines()) == 1
