@@ -294,3 +294,52 @@ def test_panels_of_their_own_bend_and_damping_are_bent_as_a_plate():
     damped = next(t for t in panels.damping_terms if type(t).__name__ == "PlateBending")
     # β k: 0.01·1e-4 on one half, 0.03·2e-4 on the other: (1 + 6)/2 = 3.5 times 0.01 · uniform
     assert energy(damped.plate) / (0.01 * energy(uniform.plate)) == pytest.approx(3.5, abs=0.1)
+
+
+# ---------------------------------------------------------------------------- orthotropic plate
+
+
+@pytest.mark.parametrize("kind", ["grid", "rot45", "delaunay"])
+def test_an_orthotropic_plate_stores_its_own_energy_in_every_direction(kind):
+    """B_u = 3 B_v: a uniform H stores ½(B_u H₀₀² + 2√(B_u B_v) H₀₁² + B_v H₁₁²) per area,
+    bends along u and v, twists and everything between (θ by 15°); on a disc, less the rim's
+    band as for the isotropic plate (there the normal curvature carries no moment)."""
+    radius, spacing, b_u, b_v = 0.15, 0.01, 3.0, 1.0
+    uv, faces = disc(radius, spacing, kind, seed=1)
+    q = hessian_bending_matrix(uv, faces, np.full(len(uv), np.sqrt(b_u * b_v)), b_u / b_v)
+    for shape in (np.diag([1.0, 0.0]), np.array([[0.0, 1.0], [1.0, 0.0]])):
+        for theta in np.radians([0.0, 15.0, 30.0, 45.0, 60.0, 75.0, 90.0]):
+            r = np.array([[np.cos(theta), -np.sin(theta)], [np.sin(theta), np.cos(theta)]])
+            h = r @ shape @ r.T
+            w = 0.5 * np.einsum("na,ab,nb->n", uv, h, uv)
+            density = 0.5 * (b_u * h[0, 0] ** 2 + 2 * np.sqrt(b_u * b_v) * h[0, 1] ** 2
+                             + b_v * h[1, 1] ** 2)
+            ratio = 0.5 * w @ q @ w / (density * np.pi * radius ** 2)
+            assert 1 - 0.5 * spacing / radius < ratio < 1.001, (np.degrees(theta), ratio)
+
+
+@pytest.mark.parametrize("kind", ["grid", "delaunay"])
+@pytest.mark.parametrize("direction", ["warp", "weft"])
+def test_an_orthotropic_cantilever_droops_by_its_own_rigidity(tmp_path, kind, direction):
+    """bend [B_u, B_v] with B_u = 2.5 B_v: a strip cut along u droops as the elastica with B_u,
+    one cut along v with B_v (bending lengths c and c/2.5^(1/3), overhang 2c_u)."""
+    length, width, density = 0.1, 0.025, 0.2
+    b_u = density * G * (length / 2) ** 3
+    b_v = b_u / 2.5
+    uv, faces, held = strip(length, width, length / 20, kind)
+    turn = np.array([[1.0, 0.0], [0.0, 1.0]]) if direction == "warp" else \
+        np.array([[0.0, -1.0], [1.0, 0.0]])  # the strip's axis along v
+    model = specimen_model(uv @ turn.T, faces, held, {
+        "density": density, "bend": [b_u, b_v], "stretch": 5000.0, "shear": 50.0,
+        "damping": 0.0}, tmp_path)
+    x = static_equilibrium(model)
+    drop = -x[np.flatnonzero(uv[:, 0] >= length - 1e-9), 2].mean()
+    bend = b_u if direction == "warp" else b_v
+    assert drop == pytest.approx(elastica_tip_drop(length, bend, density), rel=0.03)
+
+
+def test_different_warp_and_weft_bending_needs_the_plate_on_uv(tmp_path):
+    uv, faces, held = strip(0.05, 0.02, 0.01, "grid")
+    with pytest.raises(InputError, match="material.bend: different warp and weft"):
+        specimen_model(uv, faces, held, {"bend": [2e-5, 1e-5], "bend_model": "dihedral"},
+                       tmp_path)

@@ -22,11 +22,9 @@ The conversion follows ARCSim's code (Narain et al. 2012; ``conf.cpp``, ``dde.cp
   k_e κ²/8 per area with it on a grid or an equilateral mesh (0.242–0.253 k_e measured;
   0.26–0.28 on Delaunay meshes, 0.39–0.42 on a grid turned 45°), so the stored k_e does not
   include that factor and the flexural rigidity is k_e/4 (N·m). A strip along u bends on
-  hinges across it (edges along v): B_u = k_e(v-edges)/4, B_v = k_e(u-edges)/4; ``bend``, one
-  number here, is their geometric mean √(B_u B_v).
+  hinges across it (edges along v): ``bend`` = [B_u, B_v] = [k_e(v-edges), k_e(u-edges)]/4
+  (the plate's twist takes √(B_u B_v); ARCSim's 45° row is the check, see the docs).
 """
-
-import math
 
 from clothtool.errors import InputError
 
@@ -69,12 +67,12 @@ PRESETS = tuple(ARCSIM)
 
 def from_arcsim(density, stretching, bending):
     """Our ``material`` keys of an ARCSim material (its small-strain, small-curvature values):
-    density ρ; stretch [2C₁₁, 2C₂₂] N/m; shear C₃₃ N/m; bend √(B_u B_v) N·m with
+    density ρ; stretch [2C₁₁, 2C₂₂] N/m; shear C₃₃ N/m; bend [B_u, B_v] N·m with
     B_u = k_e(edges along v)/4, B_v = k_e(edges along u)/4."""
     c11, _, c22, c33 = stretching
     along_u_edges, _, along_v_edges = bending
     return {"density": float(density), "stretch": (2.0 * c11, 2.0 * c22), "shear": float(c33),
-            "bend": math.sqrt(along_v_edges / 4.0 * along_u_edges / 4.0)}
+            "bend": (along_v_edges / 4.0, along_u_edges / 4.0)}
 
 
 def preset(name, key="material.preset"):
@@ -109,5 +107,5 @@ def listing():
         m = preset(name)
         lines.append(f"{name}: {use}, {fibres}; density {m['density']:g} kg/m², stretch "
                      f"[{m['stretch'][0]:.4g}, {m['stretch'][1]:.4g}] N/m, shear "
-                     f"{m['shear']:.4g} N/m, bend {m['bend']:.4g} N·m")
+                     f"{m['shear']:.4g} N/m, bend [{m['bend'][0]:.4g}, {m['bend'][1]:.4g}] N·m")
     return lines

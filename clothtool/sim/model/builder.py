@@ -97,7 +97,7 @@ class ModelBuilder:
         self.tri_stretch = np.tile(np.concatenate([k, b]), (m, 1))
         self.tri_shear = np.full(m, material.shear)
         self.tri_density = np.full(m, material.density)
-        self.tri_bend = np.full(m, material.bend)
+        self.tri_bend = np.tile(_bend_pair(material.bend, 1.0, "material"), (m, 1))
         self.tri_damping = np.full(m, material.damping)
         return self
 
@@ -150,8 +150,10 @@ class ModelBuilder:
                                   panel.rest_stretch if panel.rest_stretch is not None
                                   else tuple(old[2:]), mesh, here)
                 self.tri_stretch[tri] = np.concatenate([k, b])
+            if panel.bend is not None:
+                self.tri_bend[tri] = _bend_pair(panel.bend, self._plate_rigidity()[1], here)
             for attr, value in (("tri_shear", panel.shear), ("tri_density", panel.density),
-                                ("tri_bend", panel.bend), ("tri_damping", panel.damping)):
+                                ("tri_damping", panel.damping)):
                 if value is not None:
                     getattr(self, attr)[tri] = value
         return self
@@ -255,7 +257,8 @@ class ModelBuilder:
             from clothtool.sim.energies.plate import hessian_bending_matrix
 
             uv = mesh.uv if mesh.uv is not None else _plane_pattern(mesh.rest3d)
-            q = hessian_bending_matrix(uv, faces, self._per_vertex(self.tri_bend))
+            rigidity, anisotropy = self._plate_rigidity()
+            q = hessian_bending_matrix(uv, faces, self._per_vertex(rigidity), anisotropy)
             plate = (q.indptr.astype(np.int64), q.indices.astype(np.int64), q.data)
         membrane_model = self._membrane_model()
         terms = _elastic_terms(faces, dr_inv, self.area, self.tri_stretch, self.tri_shear,
@@ -286,7 +289,8 @@ class ModelBuilder:
             if plate is not None:  # k_v β_v per vertex, on the plate's own sparsity
                 from clothtool.sim.energies.plate import on_pattern
 
-                damped = hessian_bending_matrix(uv, faces, self._per_vertex(self.tri_bend * beta))
+                damped = hessian_bending_matrix(uv, faces, self._per_vertex(rigidity * beta),
+                                                anisotropy)
                 damped_plate = (*plate[:2], on_pattern(q, damped))
             damping_terms = _elastic_terms(faces, dr_inv, self.area, scaled,
                                            self.tri_shear * beta, bend_model, damped_plate, n,
@@ -321,6 +325,16 @@ class ModelBuilder:
         weight = np.bincount(faces.ravel(), np.repeat(self.area, 3), minlength=n)
         return np.bincount(faces.ravel(), np.repeat(self.area * value, 3), minlength=n) / weight
 
+    def _plate_rigidity(self):
+        """(√(B_u B_v) per triangle, B_u/B_v): one warp/weft ratio for the whole mesh (the
+        plate's orthotropy is a scaling of its pattern)."""
+        bent = self.tri_bend[np.all(self.tri_bend > 0.0, axis=1)]
+        ratio = bent[:, 0] / bent[:, 1] if len(bent) else np.ones(1)
+        if np.ptp(ratio) > 1e-12 * ratio.max():
+            raise InputError("materials: a panel's bend [warp, weft] needs the warp/weft "
+                             "ratio of material.bend (one number keeps that ratio)")
+        return np.sqrt(self.tri_bend.prod(axis=1)), float(ratio[0])
+
     def _membrane_model(self):
         """``material.membrane_model``; ``nodal`` (and ``triangle`` when the membrane is off)."""
         model = self.material.membrane_model
@@ -354,7 +368,7 @@ class ModelBuilder:
             return empty
         tri_area = self.area[hinge_faces]
         edge2 = _hinge_rest_length2(mesh, hinge, hinge_faces)
-        bend = self.tri_bend[hinge_faces].mean(axis=1)
+        bend = np.sqrt(self.tri_bend.prod(axis=1))[hinge_faces].mean(axis=1)
         coef = bend * edge2 / (2.0 * tri_area.sum(axis=1))
         # a uv pattern is flat by definition; a PLY without uv rests in its own shape
         flat = flat_pattern(mesh)
@@ -367,6 +381,11 @@ class ModelBuilder:
             # panels): the dihedral model (a flat mesh without uv is its own pattern: its
             # plane's coordinates)
             model = "dihedral"
+        if np.any(self.tri_bend[:, 0] != self.tri_bend[:, 1]) and (model != "hessian"
+                                                                 or mesh.uv is None):
+            raise InputError("material.bend: different warp and weft values need the plate "
+                             "(bend_model: hessian) on a rest pattern per vertex (a grid, or a "
+                             "PLY with uv)")
         if material.bend_model == "quadratic":
             if mesh.uv is None and mesh.corner_uv is not None:
                 raise InputError("material.bend_model: 'quadratic' needs a rest pattern per "
@@ -409,6 +428,16 @@ def _bind(terms, pattern):
             constant = pattern.zeros() if constant is None else constant
             term.constant(pattern, constant)
     return constant
+
+
+def _bend_pair(bend, ratio, key):
+    """(B_u, B_v) of a ``bend``: a pair as it is, a number k as k (√ratio, 1/√ratio) (the
+    material's warp/weft ratio B_u/B_v)."""
+    if isinstance(bend, tuple):
+        if (bend[0] > 0.0) != (bend[1] > 0.0):
+            raise InputError(f"{key}.bend: warp and weft both > 0, or 0 (no bending)")
+        return np.asarray(bend, np.float64)
+    return bend * np.array([np.sqrt(ratio), 1.0 / np.sqrt(ratio)])
 
 
 def _plane_pattern(rest3d):

@@ -193,7 +193,7 @@ class Kes(Section):
 
     B: float | tuple | None = setting(None, pair_or_number(exclusive=True),
                                       "gf·cm²/cm, bending rigidity: `bend` = 9.80665e-5 B N·m "
-                                      "(warp and weft: their geometric mean)")
+                                      "(warp, weft)")
     G: float | None = setting(None, positive,
                               "gf/(cm·deg), shear stiffness: `shear` = 56.19 G N/m")
     EMT: float | tuple | None = setting(None, pair_or_number(exclusive=True),
@@ -215,8 +215,9 @@ class Material(Section):
     """Areal density (kg/m²), membrane stiffnesses (N/m), bending stiffness (N·m), damping (s).
 
     ``stretch`` and ``rest_stretch`` are a number or [along u (warp), along v (weft)];
-    ``rest_stretch`` holds Baraff–Witkin's rest length factors b_u, b_v. ``bending_length``
-    c (m, the cantilever test's) may replace ``bend``: k_b = ρ g c³ with g = 9.81 m/s².
+    ``rest_stretch`` holds Baraff–Witkin's rest length factors b_u, b_v; ``bend`` too may be
+    [warp, weft] (the plate only). ``bending_length`` c (m, the cantilever test's; a number or
+    [warp, weft]) may replace ``bend``: k_b = ρ g c³ with g = 9.81 m/s².
     ``membrane_model``: stretch and shear per ``triangle`` (linear elements), or ``nodal``:
     warp and weft stretch on each vertex's smoothed metric FᵀF (which locks less when the
     sheet bends off the mesh's lines) and shear per triangle; implicit method only.
@@ -237,9 +238,12 @@ class Material(Section):
                                           "along u). Different warp and weft values need rest "
                                           "uv (a grid, or a PLY with texture coordinates)")
     shear: float = setting(50.0, non_negative, "N/m, in-plane shear stiffness")
-    bend: float = setting(1.0e-5, non_negative,
-                          "N·m, flexural rigidity per unit width ([Textile "
-                          "units](#textile-units-and-tests)); 0 turns bending off")
+    bend: float | tuple = setting(1.0e-5, pair_or_number(exclusive=False),
+                                  "N·m, flexural rigidity per unit width: one number or "
+                                  "`[warp, weft]`, bending along u and along v (the twist "
+                                  "takes √(warp · weft); different values need the plate, "
+                                  "`bend_model: hessian`, and rest uv) ([Textile "
+                                  "units](#textile-units-and-tests)); 0 turns bending off")
     damping: float = setting(0.01, non_negative,
                              "s, stiffness-proportional (Rayleigh) damping; 0 = none")
     bend_model: str = setting("hessian", choice(BEND_MODELS),
@@ -258,10 +262,11 @@ class Material(Section):
                                  "which no rigid motion feels (a sheet on a turntable "
                                  "follows it, a crumpled start relaxes as at small steps; "
                                  "1.5–2.1× the CPU of `frozen`; see Time stepping)")
-    bending_length: float | None = setting(None, positive,
-                                           "m, instead of `bend`: the cantilever test's bending "
-                                           "length c, `bend` = `density` · 9.81 · c³ (giving "
-                                           "both is an error)")
+    bending_length: float | tuple | None = setting(None, pair_or_number(exclusive=True),
+                                                   "m, instead of `bend`: the cantilever test's "
+                                                   "bending length c (or `[warp, weft]`), "
+                                                   "`bend` = `density` · 9.81 · c³ (giving "
+                                                   "both is an error)")
     membrane_model: str = setting("triangle", choice(MEMBRANE_MODELS),
                                   "`triangle` (stretch and shear per linear triangle) or "
                                   "`nodal`: warp and weft stretch on each vertex's smoothed "
@@ -298,8 +303,10 @@ class Material(Section):
             return material
         if "bend" in given or (self.kes is not None and self.kes.B is not None):
             raise InputError(f"{key}: give one of bend (N·m), kes.B and bending_length (m)")
-        return replace(material,
-                       bend=material.density * STANDARD_GRAVITY * self.bending_length ** 3)
+        c = self.bending_length
+        rho_g = material.density * STANDARD_GRAVITY
+        return replace(material, bend=tuple(rho_g * x ** 3 for x in c) if isinstance(c, tuple)
+                       else rho_g * c ** 3)
 
 
 @dataclass(frozen=True)
@@ -313,7 +320,8 @@ class PanelMaterial(Section):
     rest_stretch: float | tuple | None = setting(None, pair_or_number(exclusive=True),
                                                  "as `material.rest_stretch`")
     shear: float | None = setting(None, non_negative, "as `material.shear`")
-    bend: float | None = setting(None, non_negative, "as `material.bend`")
+    bend: float | tuple | None = setting(None, pair_or_number(exclusive=False),
+                                         "as `material.bend`")
     damping: float | None = setting(None, non_negative, "as `material.damping`")
     faces: tuple | None = setting(None, vertex_list,
                                   "the panel's triangles, when NAME is not an OBJ group or "
