@@ -343,3 +343,14 @@ def test_different_warp_and_weft_bending_needs_the_plate_on_uv(tmp_path):
     with pytest.raises(InputError, match="material.bend: different warp and weft"):
         specimen_model(uv, faces, held, {"bend": [2e-5, 1e-5], "bend_model": "dihedral"},
                        tmp_path)
+
+
+def test_a_polar_disc_covers_the_disc_with_rings():
+    """Rings every spacing (15 at 10 mm), the pedestal's 9 cm one among them; counter-clockwise
+    triangles covering the disc within 0.1 % (the rim's polygon is short of the circle)."""
+    uv, faces = disc(0.15, 0.01, "polar")
+    r = np.hypot(uv[:, 0], uv[:, 1])
+    assert np.sum(np.abs(r - 0.09) < 1e-12) > 50 and np.isclose(r.max(), 0.15)
+    e1, e2 = uv[faces[:, 1]] - uv[faces[:, 0]], uv[faces[:, 2]] - uv[faces[:, 0]]
+    area = 0.5 * (e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0])
+    assert np.all(area > 0) and area.sum() == pytest.approx(np.pi * 0.15 ** 2, rel=1e-3)

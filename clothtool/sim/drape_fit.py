@@ -4,7 +4,7 @@ through parameter sweeps (:mod:`clothtool.sweeps`): each round is a sweep over
 a 30 cm disc on an 18 cm pedestal, 10 mm grid, 3 s at 60 fps, damping 0.05 s), on the local
 pool or as a Slurm array.
 
-The drape coefficient rises with the bending length c. Round 1 runs c = 0.75, 1.5, 3, 6 cm;
+The drape coefficient rises with the bending length c. Round 1 runs c = 0.3, 0.8, 2.2, 6 cm;
 each later round three values in the bracket around the target: c* where the coefficient,
 interpolated linearly in log c between the bracket's ends, meets the target, and c* e^{±w/6},
 w the bracket's width in log c. It stops at the first run within ``tolerance`` points of the
@@ -22,7 +22,7 @@ import numpy as np
 from clothtool.errors import InputError
 from clothtool.sim.model.config import STANDARD_GRAVITY
 
-FIRST = (0.0075, 0.015, 0.03, 0.06)  # m, round 1's bending lengths
+FIRST = (0.003, 0.008, 0.022, 0.06)  # m, round 1's bending lengths
 ROUNDS = 3
 SPACING, FPS, SECONDS = 0.01, 60, 3.0
 

@@ -211,8 +211,19 @@ def strip(length, width, spacing, kind="grid", *, clamp=True, seed=0):
 
 def disc(radius, spacing, kind="grid", *, seed=0):
     """A disc of ``radius`` m centred on the origin: ``grid`` (criss-cross grid clipped to the
-    circle, with a ring of boundary points), ``rot45`` (the same grid turned 45°) or
-    ``delaunay`` (jittered points). Returns (uv (N, 2), faces (M, 3))."""
+    circle, with a ring of boundary points), ``rot45`` (the same grid turned 45°),
+    ``delaunay`` (jittered points) or ``polar`` (concentric rings ``spacing`` apart, each with
+    points ``spacing`` apart along it, every other ring turned by half a step; Delaunay).
+    Returns (uv (N, 2), faces (M, 3))."""
+    if kind == "polar":
+        pts = [np.zeros((1, 2))]
+        rings = int(round(radius / spacing))
+        for k in range(1, rings + 1):
+            r = radius * k / rings
+            n = int(round(2 * np.pi * r / spacing))
+            phi = 2 * np.pi * (np.arange(n) + 0.5 * (k % 2)) / n
+            pts.append(r * np.stack([np.cos(phi), np.sin(phi)], axis=1))
+        return _delaunay(np.concatenate(pts), spacing)
     rng = np.random.default_rng(seed)
     n_ring = int(np.ceil(2 * np.pi * radius / spacing))
     phi = 2 * np.pi * np.arange(n_ring) / n_ring
