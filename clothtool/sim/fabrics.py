@@ -19,9 +19,9 @@ The conversion follows ARCSim's code (Narain et al. 2012; ``conf.cpp``, ``dde.cp
 - bending: ARCSim's hinge energy is k_e ‖e‖²θ²/(8(A₁ + A₂)), A the rest triangle areas,
   k_e read from the table by the hinge's direction (rows: edge along u, at 45°, along v)
   and curvature (columns; column 0 at zero curvature). A cylinder of curvature κ stores
-  k_e κ²/8 per area with it on a grid or an equilateral mesh (0.242–0.253 k_e measured;
-  0.26–0.28 on Delaunay meshes, 0.39–0.42 on a grid turned 45°), so the stored k_e does not
-  include that factor and the flexural rigidity is k_e/4 (N·m). A strip along u bends on
+  k_e κ²/8 per area with it on a grid or an equilateral mesh (0.246 and 0.247 k_e measured,
+  60 cells a side; 0.27 on a Delaunay mesh, 0.41–0.42 on a grid turned 45°), so the stored
+  k_e does not include that factor and the flexural rigidity is k_e/4 (N·m). A strip along u bends on
   hinges across it (edges along v): ``bend`` = [B_u, B_v] = [k_e(v-edges), k_e(u-edges)]/4
   (the plate's twist takes √(B_u B_v); ARCSim's 45° row is the check, see the docs).
 """

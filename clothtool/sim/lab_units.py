@@ -17,7 +17,6 @@ ASTM D1388: the cantilever's bending length c and G = W c³ (W weight per area),
 import math
 
 from clothtool.errors import InputError
-
 from clothtool.sim.model.config import STANDARD_GRAVITY
 
 GRAM_FORCE = 9.80665e-3  # N

@@ -97,7 +97,7 @@ class ModelBuilder:
         self.tri_stretch = np.tile(np.concatenate([k, b]), (m, 1))
         self.tri_shear = np.full(m, material.shear)
         self.tri_density = np.full(m, material.density)
-        self.tri_bend = np.tile(_bend_pair(material.bend, 1.0, "material"), (m, 1))
+        self.tri_bend = np.tile(_bend_pair(material.bend, 1.0), (m, 1))
         self.tri_damping = np.full(m, material.damping)
         return self
 
@@ -151,7 +151,7 @@ class ModelBuilder:
                                   else tuple(old[2:]), mesh, here)
                 self.tri_stretch[tri] = np.concatenate([k, b])
             if panel.bend is not None:
-                self.tri_bend[tri] = _bend_pair(panel.bend, self._plate_rigidity()[1], here)
+                self.tri_bend[tri] = _bend_pair(panel.bend, self._plate_rigidity()[1])
             for attr, value in (("tri_shear", panel.shear), ("tri_density", panel.density),
                                 ("tri_damping", panel.damping)):
                 if value is not None:
@@ -430,12 +430,10 @@ def _bind(terms, pattern):
     return constant
 
 
-def _bend_pair(bend, ratio, key):
+def _bend_pair(bend, ratio):
     """(B_u, B_v) of a ``bend``: a pair as it is, a number k as k (√ratio, 1/√ratio) (the
     material's warp/weft ratio B_u/B_v)."""
     if isinstance(bend, tuple):
-        if (bend[0] > 0.0) != (bend[1] > 0.0):
-            raise InputError(f"{key}.bend: warp and weft both > 0, or 0 (no bending)")
         return np.asarray(bend, np.float64)
     return bend * np.array([np.sqrt(ratio), 1.0 / np.sqrt(ratio)])
 

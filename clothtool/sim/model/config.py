@@ -186,6 +186,12 @@ def one_word(value, key):
 KES_KEYS = {"density": "W", "bend": "B", "shear": "G", "stretch": "EMT"}
 
 
+def both_or_neither(bend, key):
+    """A [warp, weft] ``bend`` bends both ways or not at all."""
+    if isinstance(bend, tuple) and (bend[0] > 0.0) != (bend[1] > 0.0):
+        raise InputError(f"{key}: warp and weft both > 0, or 0 (no bending)")
+
+
 @dataclass(frozen=True)
 class Kes(Section):
     """KES-F values (Kawabata): B, G, EMT, W in the lab's units, each optional; B and EMT one
@@ -299,6 +305,7 @@ class Material(Section):
                                      "not both")
                 values[name] = value
         material = replace(self, **values)
+        both_or_neither(material.bend, f"{key}.bend")
         if self.bending_length is None:
             return material
         if "bend" in given or (self.kes is not None and self.kes.B is not None):
@@ -331,6 +338,7 @@ class PanelMaterial(Section):
                                  "and bend for the panel's keys not given")
 
     def finish(self, given, key):
+        both_or_neither(self.bend, f"{key}.bend")
         if self.preset is None:
             return self
         from clothtool.sim import fabrics
