@@ -47,7 +47,7 @@ material:
   stretch: 5000.0       # N/m, membrane stiffness: one number, or [warp, weft] (along u, along v)
   rest_stretch: 1.0     # rest length factors b_u, b_v: one number or [b_u, b_v]; 1.1 = rests 10 % longer
   shear: 50.0           # N/m, in-plane shear stiffness
-  bend: 1.0e-5          # N·m, flexural rigidity (or bending_length: c in m, bend = ρ g c³)
+  bend: 1.0e-5          # N·m, flexural rigidity: one number or [warp, weft] (or bending_length: c in m, bend = ρ g c³)
   damping: 0.01         # s, stiffness-proportional damping; 0 = none
   bend_model: hessian   # hessian (plate: the stated rigidity on any flat-resting mesh), dihedral (hinges) or quadratic
   damping_model: frozen # frozen (βK at the step's start: resists rotation) or strain (stretch, shear and bending damped by their change over the step: a rigid motion feels none; implicit only; 1.5–2.1× frozen's CPU)

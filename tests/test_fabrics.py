@@ -277,3 +277,32 @@ def test_fit_drape_refuses_a_coefficient_outside_0_100():
     out = CliRunner().invoke(main, ["fabric", "--fit-drape", "100", "-o", "x"])
     assert out.exit_code == 2 and "between 0 and 100" in out.output
     assert len(out.output.strip().splitlines()) == 1
+
+
+def test_fit_drape_waits_for_slurm_and_goes_on_from_the_runs_on_disk(tmp_path, monkeypatch):
+    """A round left to Slurm returns its sbatch command; the same call once the array has
+    ended (its runs on disk) goes on to the next round."""
+    import clothtool.sweeps
+    from clothtool.sim import drape_fit
+
+    finished = set()
+
+    def fake_sweep(base, folder, *, grid, slurm, **_):
+        folder.mkdir(parents=True, exist_ok=True)
+        (folder / "values").write_text(json.dumps(grid["material.bending_length"]))
+        result = clothtool.sweeps.SweepResult(folder, 0, 0, 0)
+        if slurm and folder.name not in finished:
+            result.sbatch = f"sbatch {folder}/sweep.sbatch"
+        return result
+
+    def curve(folder):
+        return [(c, 1.0 / (1.0 + (0.02 / c) ** 1.5)) for c in json.loads((folder / "values").read_text())]
+
+    monkeypatch.setattr(clothtool.sweeps, "sweep", fake_sweep)
+    monkeypatch.setattr(drape_fit, "_coefficients", curve)
+    first = drape_fit.fit_drape(material(), 0.6, tmp_path, slurm=True)
+    assert first.sbatch.endswith("round_1/sweep.sbatch") and first.bend is None
+    assert "rerun this command" in lab_units.fit_report(material(), first)
+    finished.add("round_1")
+    second = drape_fit.fit_drape(material(), 0.6, tmp_path, slurm=True)
+    assert second.sbatch.endswith("round_2/sweep.sbatch") and len(second.runs) == 4
