@@ -306,3 +306,25 @@ def test_fit_drape_waits_for_slurm_and_goes_on_from_the_runs_on_disk(tmp_path, m
     finished.add("round_1")
     second = drape_fit.fit_drape(material(), 0.6, tmp_path, slurm=True)
     assert second.sbatch.endswith("round_2/sweep.sbatch") and len(second.runs) == 4
+
+
+@pytest.mark.parametrize("direction", ["warp", "weft"])
+def test_a_presets_simulated_cantilever_shows_its_own_bending_length(direction):
+    """11oz denim: c = (B/(ρg))^(1/3) = 1.968 cm along warp (u), 1.716 cm along weft (v); the
+    simulated cantilever, read through the elastica, within 1 % (the benchmark: +0.16, +0.21)."""
+    from clothtool.sim.textile import cantilever_bending_length
+
+    b = dict(zip(("warp", "weft"), (24.237894e-6, 16.049114e-6)))[direction]
+    c = cantilever_bending_length({"preset": "11oz-black-denim"}, direction)
+    assert c == pytest.approx((b / (0.324 * 9.81)) ** (1 / 3), rel=0.01)
+
+
+def test_cusick_drape_of_a_stiff_and_a_limp_disc():
+    """The swimsuit knit's membrane on a 2 cm disc: with a bending length of 1 m it hardly
+    droops past its 18 cm pedestal (coefficient near 1); with 5 mm it hangs (well below)."""
+    from clothtool.sim.textile import cusick_drape
+
+    base = {"preset": "white-swim-solid", "damping": 0.05}
+    stiff = cusick_drape({**base, "bending_length": 1.0}, 0.02, seconds=2.0)[0]
+    limp = cusick_drape({**base, "bending_length": 0.005}, 0.02, seconds=2.0)[0]
+    assert stiff > 0.97 and limp < 0.6
