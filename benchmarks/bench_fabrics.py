@@ -4,7 +4,7 @@
 
 Writes ``bench-results/fabrics.md``:
 
-- every preset (``material.preset``, :mod:`clothtool.sim.fabrics`): the bending length its
+- every preset (``material.preset``, :mod:`clothtool.fabrics`): the bending length its
   own data predict along warp (u) and weft (v), c = (B/(ρg))^(1/3), against the simulated
   cantilever's (:func:`clothtool.sim.textile.cantilever_bending_length`: a grid strip of
   overhang 2c, 20 divisions, static equilibrium, read through the elastica), and its
@@ -32,7 +32,7 @@ KUMARI_KHURANA = {
 
 def lab_rows(name, material):
     """One row: predicted and simulated bending lengths (warp, weft) and drape coefficient."""
-    from clothtool.sim.lab_units import to_lab
+    from clothtool.lab_units import to_lab
     from clothtool.sim.model.config import load_config
     from clothtool.sim.textile import CUSICK_DAMPING, cantilever_bending_length, cusick_drape
 
@@ -53,7 +53,7 @@ def lab_rows(name, material):
 
 
 def run(out_dir):
-    from clothtool.sim.fabrics import PRESETS
+    from clothtool.fabrics import PRESETS
 
     started = time.perf_counter()
     presets = [lab_rows(name, {"preset": name}) for name in PRESETS]

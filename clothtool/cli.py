@@ -433,21 +433,22 @@ Examples:
 @click.option("--list", "show_list", is_flag=True, help="List the measured fabrics and exit.")
 def fabric(config, preset, kes, settings, drape, target, output, jobs, slurm, show_list):
     """Print a material block (SI) and what it is in a lab's units (KES-F, ASTM D1388)."""
-    from clothtool.sim import fabrics, lab_units
+    from clothtool import fabrics
+    from clothtool.sim import lab_sheet
 
     if show_list:
         click.echo("\n".join(fabrics.listing()))
         return
-    material = lab_units.material_of(config, preset=preset, kes=kes, overrides=settings)
+    material = lab_sheet.material_of(config, preset=preset, kes=kes, overrides=settings)
     if target is not None:
-        from clothtool.sim.drape_fit import fit_drape
+        from clothtool.sweeps.drape_fit import fit_drape
 
         if output is None:
             raise click.UsageError("--fit-drape needs -o DIR (the sweeps' folder)")
         fit = fit_drape(material, target / 100.0, output, jobs=jobs, slurm=slurm)
-        click.echo(lab_units.fit_report(material, fit))
+        click.echo(lab_sheet.fit_report(material, fit))
         return
-    click.echo(lab_units.report(material, lab_units.simulated_drape(material) if drape else None))
+    click.echo(lab_sheet.report(material, lab_sheet.simulated_drape(material) if drape else None))
 
 
 SIMULATE_EPILOG = """\b

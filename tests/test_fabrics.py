@@ -20,7 +20,8 @@ from hypothesis import strategies as st
 from clothtool.cli import main
 from clothtool.errors import InputError
 from clothtool.geometry import dihedral_angles, hinges
-from clothtool.sim import fabrics, lab_units
+from clothtool import fabrics, lab_units
+from clothtool.sim import lab_sheet
 from clothtool.sim.model.config import load_config, resolved_yaml
 from clothtool.sim.textile import strip
 
@@ -238,7 +239,7 @@ def test_a_panels_one_number_keeps_the_materials_warp_weft_ratio():
 def test_next_round_interpolates_in_log_c():
     """Runs at c = 1 and 4 cm drape 0.4 and 0.8: the target 0.6 is halfway, at log c = log 2;
     the round is 2 cm and 2 cm · 4^(±1/6)."""
-    from clothtool.sim.drape_fit import _next_round
+    from clothtool.sweeps.drape_fit import _next_round
 
     values = _next_round([(0.04, 0.8), (0.01, 0.4)], 0.6)
     assert values == pytest.approx([0.02 * 4 ** (-1 / 6), 0.02, 0.02 * 4 ** (1 / 6)], rel=1e-12)
@@ -251,7 +252,7 @@ def test_fit_drape_converges_on_a_known_curve(tmp_path, monkeypatch, target):
     """With the sweeps replaced by a known drape curve d(c) = 1/(1 + (2 cm/c)^1.5) (d rises with
     c), the fit lands within 0.5 points of the target in at most 10 runs."""
     import clothtool.sweeps
-    from clothtool.sim import drape_fit
+    from clothtool.sweeps import drape_fit
 
     ran = []
 
@@ -283,7 +284,7 @@ def test_fit_drape_waits_for_slurm_and_goes_on_from_the_runs_on_disk(tmp_path, m
     """A round left to Slurm returns its sbatch command; the same call once the array has
     ended (its runs on disk) goes on to the next round."""
     import clothtool.sweeps
-    from clothtool.sim import drape_fit
+    from clothtool.sweeps import drape_fit
 
     finished = set()
 
@@ -302,7 +303,7 @@ def test_fit_drape_waits_for_slurm_and_goes_on_from_the_runs_on_disk(tmp_path, m
     monkeypatch.setattr(drape_fit, "_coefficients", curve)
     first = drape_fit.fit_drape(material(), 0.6, tmp_path, slurm=True)
     assert first.sbatch.endswith("round_1/sweep.sbatch") and first.bend is None
-    assert "rerun this command" in lab_units.fit_report(material(), first)
+    assert "rerun this command" in lab_sheet.fit_report(material(), first)
     finished.add("round_1")
     second = drape_fit.fit_drape(material(), 0.6, tmp_path, slurm=True)
     assert second.sbatch.endswith("round_2/sweep.sbatch") and len(second.runs) == 4

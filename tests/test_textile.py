@@ -338,11 +338,41 @@ def test_an_orthotropic_cantilever_droops_by_its_own_rigidity(tmp_path, kind, di
     assert drop == pytest.approx(elastica_tip_drop(length, bend, density), rel=0.03)
 
 
-def test_different_warp_and_weft_bending_needs_the_plate_on_uv(tmp_path):
+def test_the_hinges_take_the_rigidity_across_their_edge(tmp_path):
+    """bend [B_u, B_v] = [4e-5, 1e-5] on a grid (hinges along u, along v and diagonal): an edge
+    along u folds the sheet along v (B_v), one along v B_u, a diagonal at 45° the plate's
+    bias rigidity ((√B_u + √B_v)/2)² = 2.25e-5; c_h = k ‖e‖²/(2(A₁ + A₂))."""
     uv, faces, held = strip(0.05, 0.02, 0.01, "grid")
-    with pytest.raises(InputError, match="material.bend: different warp and weft"):
-        specimen_model(uv, faces, held, {"bend": [2e-5, 1e-5], "bend_model": "dihedral"},
-                       tmp_path)
+    model = specimen_model(uv, faces, held, {"bend": [4e-5, 1e-5], "bend_model": "dihedral"},
+                           tmp_path)
+    e = uv[model.hinge[:, 1]] - uv[model.hinge[:, 0]]
+    e1 = uv[faces[:, 1]] - uv[faces[:, 0]]
+    e2 = uv[faces[:, 2]] - uv[faces[:, 0]]
+    area = 0.5 * np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0])
+    pair = np.array([[f for f, tri in enumerate(faces) if {i, j} <= set(tri)] for i, j in model.hinge[:, :2]])
+    k = model.hinge_coef * 2.0 * area[pair].sum(axis=1) / np.einsum("hp,hp->h", e, e)
+    along_u, along_v = np.abs(e[:, 1]) < 1e-12, np.abs(e[:, 0]) < 1e-12
+    np.testing.assert_allclose(k[along_u], 1e-5, rtol=1e-12)
+    np.testing.assert_allclose(k[along_v], 4e-5, rtol=1e-12)
+    diagonal = ~along_u & ~along_v
+    assert diagonal.any()
+    cos2 = e[diagonal, 0] ** 2 / np.einsum("hp,hp->h", e[diagonal], e[diagonal])
+    np.testing.assert_allclose(k[diagonal], (np.sqrt(4e-5) * (1 - cos2) + np.sqrt(1e-5) * cos2) ** 2,
+                               rtol=1e-12)
+
+
+def test_different_warp_and_weft_bending_needs_rest_uv(tmp_path):
+    from clothtool.io.ply import write_ply
+    from clothtool.sim.model.builder import build_model
+
+    uv, faces, _ = strip(0.05, 0.02, 0.01, "grid")
+    x = np.concatenate([uv, np.zeros((len(uv), 1))], axis=1)
+    write_ply(tmp_path / "plain.ply", x, faces)
+    config = load_config({"mesh": {"ply": str(tmp_path / "plain.ply")},
+                          "material": {"bend": [2e-5, 1e-5]}})
+    with pytest.raises(InputError, match="material.bend: different warp and weft values need "
+                                         "rest uv"):
+        build_model(config)
 
 
 def test_a_polar_disc_covers_the_disc_with_rings():

@@ -366,10 +366,13 @@ class ModelBuilder:
         hinge, hinge_faces = hinges(faces, len(mesh.positions))
         if len(hinge) == 0:
             return empty
+        if not flat_pattern(mesh) and np.any(self.tri_bend[:, 0] != self.tri_bend[:, 1]):
+            raise InputError("material.bend: different warp and weft values need rest uv (a "
+                             "grid, or a PLY or OBJ with texture coordinates)")
         tri_area = self.area[hinge_faces]
-        edge2 = _hinge_rest_length2(mesh, hinge, hinge_faces)
-        bend = np.sqrt(self.tri_bend.prod(axis=1))[hinge_faces].mean(axis=1)
-        coef = bend * edge2 / (2.0 * tri_area.sum(axis=1))
+        edge = _hinge_rest_edges(mesh, hinge, hinge_faces)
+        bend = _hinge_rigidity(self.tri_bend[hinge_faces].mean(axis=1), edge)
+        coef = bend * np.einsum("hp,hp->h", edge, edge) / (2.0 * tri_area.sum(axis=1))
         # a uv pattern is flat by definition; a PLY without uv rests in its own shape
         flat = flat_pattern(mesh)
         rest_angle = np.zeros(len(hinge)) if flat else dihedral_angles(mesh.rest3d, hinge)
@@ -381,11 +384,6 @@ class ModelBuilder:
             # panels): the dihedral model (a flat mesh without uv is its own pattern: its
             # plane's coordinates)
             model = "dihedral"
-        if np.any(self.tri_bend[:, 0] != self.tri_bend[:, 1]) and (model != "hessian"
-                                                                 or mesh.uv is None):
-            raise InputError("material.bend: different warp and weft values need the plate "
-                             "(bend_model: hessian) on a rest pattern per vertex (a grid, or a "
-                             "PLY with uv)")
         if material.bend_model == "quadratic":
             if mesh.uv is None and mesh.corner_uv is not None:
                 raise InputError("material.bend_model: 'quadratic' needs a rest pattern per "
@@ -457,19 +455,29 @@ def _rest_edges(mesh):
     return mesh.rest3d[f] - mesh.rest3d[np.roll(f, 1, axis=1)]
 
 
-def _hinge_rest_length2(mesh, hinge, hinge_faces):
-    """(H,) squared rest length of each hinge edge (i, j): in the first face's corner uv for a
-    pattern per corner (both faces agree unless the hinge is a seam in uv), else of rest3d."""
+def _hinge_rest_edges(mesh, hinge, hinge_faces):
+    """(H, 2) or (H, 3) rest vector of each hinge edge (i, j): in the first face's corner uv
+    for a pattern per corner (both faces agree unless the hinge is a seam in uv), else of
+    rest3d ((u, v, 0) with uv per vertex)."""
     if mesh.corner_uv is None:
-        d = mesh.rest3d[hinge[:, 1]] - mesh.rest3d[hinge[:, 0]]
-        return np.einsum("hp,hp->h", d, d)
+        return mesh.rest3d[hinge[:, 1]] - mesh.rest3d[hinge[:, 0]]
     face = mesh.faces[hinge_faces[:, 0]]  # (H, 3)
     uv = mesh.corner_uv[hinge_faces[:, 0]]  # (H, 3, 2)
     rows = np.arange(len(hinge))
     ci = np.argmax(face == hinge[:, :1], axis=1)
     cj = np.argmax(face == hinge[:, 1:2], axis=1)
-    d = uv[rows, cj] - uv[rows, ci]
-    return np.einsum("hp,hp->h", d, d)
+    return uv[rows, cj] - uv[rows, ci]
+
+
+def _hinge_rigidity(bend, edge):
+    """Each hinge's k_b from (B_u, B_v) (H, 2) and its rest edge in the pattern: the
+    orthotropic plate's rigidity across the edge, (√B_u sin²φ + √B_v cos²φ)², φ the edge's
+    angle to u (an edge along u folds the sheet along v: B_v)."""
+    if np.array_equal(bend[:, 0], bend[:, 1]):
+        return bend[:, 0].copy()
+    length2 = np.einsum("hp,hp->h", edge[:, :2], edge[:, :2])
+    cos2 = np.divide(edge[:, 0] ** 2, length2, out=np.full(len(edge), 0.5), where=length2 > 0)
+    return (np.sqrt(bend[:, 0]) * (1.0 - cos2) + np.sqrt(bend[:, 1]) * cos2) ** 2
 
 
 def _warp_weft(stretch, rest_stretch, mesh, key):

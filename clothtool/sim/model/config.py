@@ -23,7 +23,9 @@ from typing import Mapping
 
 import yaml
 
+from clothtool import fabrics, lab_units
 from clothtool.errors import InputError
+from clothtool.lab_units import STANDARD_GRAVITY
 from clothtool.sim.model import methods
 from clothtool.sim.model.schema import (Section, as_dict, choice, choices, flag, integer, listing,
                                         number, one_of, pair_or_number, path, resolve_paths,
@@ -35,7 +37,6 @@ PLANES = ("xy", "xz", "yz")
 BEND_MODELS = ("hessian", "dihedral", "quadratic")
 MEMBRANE_MODELS = ("triangle", "nodal")
 DAMPING_MODELS = ("strain", "frozen")  # the strains' change potential, or βK(x_n) frozen
-STANDARD_GRAVITY = 9.81  # m/s², of bending_length → bend (k_b = ρ g c³)
 METHODS = tuple(methods.METHODS)
 PRECONDITIONERS = ("jacobi", "multigrid")
 PBD_VARIANTS = ("gauss-seidel", "jacobi", "hierarchical")
@@ -222,13 +223,13 @@ class Material(Section):
 
     ``stretch`` and ``rest_stretch`` are a number or [along u (warp), along v (weft)];
     ``rest_stretch`` holds Baraff–Witkin's rest length factors b_u, b_v; ``bend`` too may be
-    [warp, weft] (the plate only). ``bending_length`` c (m, the cantilever test's; a number or
+    [warp, weft]. ``bending_length`` c (m, the cantilever test's; a number or
     [warp, weft]) may replace ``bend``: k_b = ρ g c³ with g = 9.81 m/s².
     ``membrane_model``: stretch and shear per ``triangle`` (linear elements), or ``nodal``:
     warp and weft stretch on each vertex's smoothed metric FᵀF (which locks less when the
     sheet bends off the mesh's lines) and shear per triangle; implicit method only.
-    ``preset`` (a measured fabric, :mod:`clothtool.sim.fabrics`) and ``kes`` (KES-F values,
-    :mod:`clothtool.sim.lab_units`) fill the keys the section does not give; ``kes`` wins
+    ``preset`` (a measured fabric, :mod:`clothtool.fabrics`) and ``kes`` (KES-F values,
+    :mod:`clothtool.lab_units`) fill the keys the section does not give; ``kes`` wins
     over ``preset``.
     """
 
@@ -247,9 +248,10 @@ class Material(Section):
     bend: float | tuple = setting(1.0e-5, pair_or_number(exclusive=False),
                                   "N·m, flexural rigidity per unit width: one number or "
                                   "`[warp, weft]`, bending along u and along v (the twist "
-                                  "takes √(warp · weft); different values need the plate, "
-                                  "`bend_model: hessian`, and rest uv) ([Textile "
-                                  "units](#textile-units-and-tests)); 0 turns bending off")
+                                  "takes √(warp · weft); different values need rest uv; "
+                                  "the hinge models take each hinge's rigidity across its "
+                                  "edge) ([Textile units](#textile-units-and-tests)); 0 turns "
+                                  "bending off")
     damping: float = setting(0.01, non_negative,
                              "s, stiffness-proportional (Rayleigh) damping; 0 = none")
     bend_model: str = setting("hessian", choice(BEND_MODELS),
@@ -292,8 +294,6 @@ class Material(Section):
     def finish(self, given, key):
         """The keys not given from ``preset``, then from ``kes``; ``bend`` = ρ g c³ from
         ``bending_length`` c and ``density`` ρ (not both bend and c)."""
-        from clothtool.sim import fabrics, lab_units
-
         values = {}
         if self.preset is not None:
             values = {k: v for k, v in fabrics.preset(self.preset, f"{key}.preset").items()
@@ -341,8 +341,6 @@ class PanelMaterial(Section):
         both_or_neither(self.bend, f"{key}.bend")
         if self.preset is None:
             return self
-        from clothtool.sim import fabrics
-
         return replace(self, **{k: v for k, v in fabrics.preset(self.preset, f"{key}.preset")
                                 .items() if k not in given})
 

@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from clothtool.errors import InputError
-from clothtool.sim.model.config import STANDARD_GRAVITY
+from clothtool.lab_units import STANDARD_GRAVITY
 
 FIRST = (0.003, 0.008, 0.022, 0.06)  # m, round 1's bending lengths
 ROUNDS = 3
@@ -98,7 +98,7 @@ def _write_scene(material, root):
     import yaml
 
     from clothtool.io.ply import write_ply
-    from clothtool.sim.lab_units import SI_KEYS
+    from clothtool.sim.lab_sheet import SI_KEYS
     from clothtool.sim.textile import CUSICK, CUSICK_DAMPING, disc
 
     radius, pedestal = CUSICK
