@@ -124,30 +124,19 @@ DRAPE = dict(radius=0.15, pedestal=0.09, density=0.2, bending_length=0.03, stret
 
 def drape(kind, spacing, **material):
     """(positions, faces, drape coefficient, folds, wall s, largest speed) of the Cusick test on
-    one mesh; ``material``: keys that replace or add to DRAPE's."""
-    from clothtool.sim.model.config import load_config
-    from clothtool.sim.model.methods import make_integrator
-    from clothtool.sim.textile import disc, drape_coefficient, specimen_model
+    one mesh (:func:`clothtool.sim.textile.cusick_drape`); ``material``: keys that replace or
+    add to DRAPE's."""
+    from clothtool.sim.textile import cusick_drape, disc
 
     d = DRAPE
-    uv, faces = disc(d["radius"], spacing, kind, seed=1)
-    r, phi = np.hypot(uv[:, 0], uv[:, 1]), np.arctan2(uv[:, 1], uv[:, 0])
-    held = np.flatnonzero(r <= d["pedestal"] + 1e-9)
-    with tempfile.TemporaryDirectory() as tmp:
-        model = specimen_model(uv, faces, held, {
-            "density": d["density"], "bending_length": d["bending_length"],
-            "stretch": d["stretch"], "shear": d["shear"], "damping": d["damping"],
-            **material}, tmp)
-    solver = load_config({"mesh": {"grid": {}}, "solver": {"tolerance": 1e-3}}).solver
-    integrator = make_integrator(model, solver, 1.0 / d["fps"])
-    state = model.initial_state()
-    ripple = np.clip(r - d["pedestal"], 0.0, None) / (d["radius"] - d["pedestal"])
-    state.x[:, 2] = -0.002 * ripple * np.cos(6 * phi)
     started = time.perf_counter()
-    for _ in range(int(d["seconds"] * d["fps"])):
-        integrator.step(state)
+    coefficient, state, faces = cusick_drape(
+        {"density": d["density"], "bending_length": d["bending_length"], "stretch": d["stretch"],
+         "shear": d["shear"], "damping": d["damping"], **material},
+        spacing, kind, seconds=d["seconds"], fps=d["fps"])
     wall = time.perf_counter() - started
-    coefficient = drape_coefficient(state.x, faces, d["pedestal"], d["radius"], centre=(0, 0, 0))
+    uv, _ = disc(d["radius"], spacing, kind, seed=1)
+    r, phi = np.hypot(uv[:, 0], uv[:, 1]), np.arctan2(uv[:, 1], uv[:, 0])
     rim = np.flatnonzero(r >= d["radius"] - 1e-9)
     order = np.argsort(phi[rim])
     reach = np.hypot(state.x[rim, 0], state.x[rim, 1])[order]

@@ -23,7 +23,8 @@ OPTIONS = {"fields": "--fields", "dtype": "--dtype", "compression": "--compressi
            "pairs": "--pairs", "reference": "--reference", "uv_scale": "--uv-scale",
            "vertex_average": "--vertex-average", "kabsch": "--kabsch", "pair": "--pair",
            "field": "--field", "component": "--component", "color_range": "--range",
-           "overrides": "--set", "fps": "--fps", "dpi": "--dpi"}
+           "overrides": "--set", "fps": "--fps", "dpi": "--dpi", "kes": "--kes",
+           "target": "--fit-drape"}
 """Library keyword argument → the option that sets it, for the messages of InputError."""
 
 EXIT_CODES_HELP = """\b
@@ -391,6 +392,63 @@ def init_config():
     from clothtool.config_tools import DEFAULT_CONFIG
 
     click.echo(DEFAULT_CONFIG, nl=False)
+
+
+FABRIC_EPILOG = """\b
+Examples:
+  clothtool fabric --list
+      the measured fabrics (material.preset)
+  clothtool fabric --preset 11oz-black-denim
+      a preset's material block, in SI and in a lab's units
+  clothtool fabric --kes B=0.16,0.20 --kes W=38 --kes G=0.9 --kes EMT=4.1,7.5
+      KES-F values (warp, weft) as a material block
+  clothtool fabric sheet.yaml --drape
+      a config's material in a lab's units, with its simulated Cusick drape
+  clothtool fabric sheet.yaml --fit-drape 55 -o fit/ -j 2
+      the bending length whose simulated Cusick test drapes 55 %
+
+""" + EXIT_CODES_HELP
+
+
+@main.command(epilog=FABRIC_EPILOG)
+@click.argument("config", required=False, type=click.Path(dir_okay=False))
+@click.option("--preset", default=None, metavar="NAME", help="A measured fabric (see --list).")
+@click.option("--kes", multiple=True, metavar="NAME=VALUE",
+              help="A KES-F value: B (gf·cm²/cm), G (gf/cm·deg), EMT (%), W (mg/cm²); "
+                   "B and EMT may be WARP,WEFT.")
+@click.option("--set", "settings", multiple=True, metavar="KEY=VALUE",
+              help="Change a config key (repeatable).")
+@click.option("--drape", is_flag=True,
+              help="Also simulate its Cusick drape test (about 15-60 s) and print the drape "
+                   "coefficient.")
+@click.option("--fit-drape", "target", type=float, default=None, metavar="PERCENT",
+              help="Fit the bending to this measured Cusick drape coefficient (sweeps of the "
+                   "drape test into -o DIR; at most 10 simulations).")
+@click.option("-o", "--output", type=click.Path(file_okay=False), default=None,
+              help="The folder of --fit-drape's sweeps.")
+@click.option("-j", "--jobs", default=1, show_default=True, type=int,
+              help="--fit-drape: simulations at a time on this machine.")
+@click.option("--slurm", is_flag=True,
+              help="--fit-drape: write each round's Slurm array instead; rerun once it ended.")
+@click.option("--list", "show_list", is_flag=True, help="List the measured fabrics and exit.")
+def fabric(config, preset, kes, settings, drape, target, output, jobs, slurm, show_list):
+    """Print a material block (SI) and what it is in a lab's units (KES-F, ASTM D1388)."""
+    from clothtool import fabrics
+    from clothtool.sim import lab_sheet
+
+    if show_list:
+        click.echo("\n".join(fabrics.listing()))
+        return
+    material = lab_sheet.material_of(config, preset=preset, kes=kes, overrides=settings)
+    if target is not None:
+        from clothtool.sweeps.drape_fit import fit_drape
+
+        if output is None:
+            raise click.UsageError("--fit-drape needs -o DIR (the sweeps' folder)")
+        fit = fit_drape(material, target / 100.0, output, jobs=jobs, slurm=slurm)
+        click.echo(lab_sheet.fit_report(material, fit))
+        return
+    click.echo(lab_sheet.report(material, lab_sheet.simulated_drape(material) if drape else None))
 
 
 SIMULATE_EPILOG = """\b

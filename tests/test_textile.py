@@ -294,3 +294,93 @@ def test_panels_of_their_own_bend_and_damping_are_bent_as_a_plate():
     damped = next(t for t in panels.damping_terms if type(t).__name__ == "PlateBending")
     # β k: 0.01·1e-4 on one half, 0.03·2e-4 on the other: (1 + 6)/2 = 3.5 times 0.01 · uniform
     assert energy(damped.plate) / (0.01 * energy(uniform.plate)) == pytest.approx(3.5, abs=0.1)
+
+
+# ---------------------------------------------------------------------------- orthotropic plate
+
+
+@pytest.mark.parametrize("kind", ["grid", "rot45", "delaunay"])
+def test_an_orthotropic_plate_stores_its_own_energy_in_every_direction(kind):
+    """B_u = 3 B_v: a uniform H stores ½(B_u H₀₀² + 2√(B_u B_v) H₀₁² + B_v H₁₁²) per area,
+    bends along u and v, twists and everything between (θ by 15°); on a disc, less the rim's
+    band as for the isotropic plate (there the normal curvature carries no moment)."""
+    radius, spacing, b_u, b_v = 0.15, 0.01, 3.0, 1.0
+    uv, faces = disc(radius, spacing, kind, seed=1)
+    q = hessian_bending_matrix(uv, faces, np.full(len(uv), np.sqrt(b_u * b_v)), b_u / b_v)
+    for shape in (np.diag([1.0, 0.0]), np.array([[0.0, 1.0], [1.0, 0.0]])):
+        for theta in np.radians([0.0, 15.0, 30.0, 45.0, 60.0, 75.0, 90.0]):
+            r = np.array([[np.cos(theta), -np.sin(theta)], [np.sin(theta), np.cos(theta)]])
+            h = r @ shape @ r.T
+            w = 0.5 * np.einsum("na,ab,nb->n", uv, h, uv)
+            density = 0.5 * (b_u * h[0, 0] ** 2 + 2 * np.sqrt(b_u * b_v) * h[0, 1] ** 2
+                             + b_v * h[1, 1] ** 2)
+            ratio = 0.5 * w @ q @ w / (density * np.pi * radius ** 2)
+            assert 1 - 0.5 * spacing / radius < ratio < 1.001, (np.degrees(theta), ratio)
+
+
+@pytest.mark.parametrize("kind", ["grid", "delaunay"])
+@pytest.mark.parametrize("direction", ["warp", "weft"])
+def test_an_orthotropic_cantilever_droops_by_its_own_rigidity(tmp_path, kind, direction):
+    """bend [B_u, B_v] with B_u = 2.5 B_v: a strip cut along u droops as the elastica with B_u,
+    one cut along v with B_v (bending lengths c and c/2.5^(1/3), overhang 2c_u)."""
+    length, width, density = 0.1, 0.025, 0.2
+    b_u = density * G * (length / 2) ** 3
+    b_v = b_u / 2.5
+    uv, faces, held = strip(length, width, length / 20, kind)
+    turn = np.array([[1.0, 0.0], [0.0, 1.0]]) if direction == "warp" else \
+        np.array([[0.0, -1.0], [1.0, 0.0]])  # the strip's axis along v
+    model = specimen_model(uv @ turn.T, faces, held, {
+        "density": density, "bend": [b_u, b_v], "stretch": 5000.0, "shear": 50.0,
+        "damping": 0.0}, tmp_path)
+    x = static_equilibrium(model)
+    drop = -x[np.flatnonzero(uv[:, 0] >= length - 1e-9), 2].mean()
+    bend = b_u if direction == "warp" else b_v
+    assert drop == pytest.approx(elastica_tip_drop(length, bend, density), rel=0.03)
+
+
+def test_the_hinges_take_the_rigidity_across_their_edge(tmp_path):
+    """bend [B_u, B_v] = [4e-5, 1e-5] on a grid (hinges along u, along v and diagonal): an edge
+    along u folds the sheet along v (B_v), one along v B_u, a diagonal at 45° the plate's
+    bias rigidity ((√B_u + √B_v)/2)² = 2.25e-5; c_h = k ‖e‖²/(2(A₁ + A₂))."""
+    uv, faces, held = strip(0.05, 0.02, 0.01, "grid")
+    model = specimen_model(uv, faces, held, {"bend": [4e-5, 1e-5], "bend_model": "dihedral"},
+                           tmp_path)
+    e = uv[model.hinge[:, 1]] - uv[model.hinge[:, 0]]
+    e1 = uv[faces[:, 1]] - uv[faces[:, 0]]
+    e2 = uv[faces[:, 2]] - uv[faces[:, 0]]
+    area = 0.5 * np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0])
+    pair = np.array([[f for f, tri in enumerate(faces) if {i, j} <= set(tri)] for i, j in model.hinge[:, :2]])
+    k = model.hinge_coef * 2.0 * area[pair].sum(axis=1) / np.einsum("hp,hp->h", e, e)
+    along_u, along_v = np.abs(e[:, 1]) < 1e-12, np.abs(e[:, 0]) < 1e-12
+    np.testing.assert_allclose(k[along_u], 1e-5, rtol=1e-12)
+    np.testing.assert_allclose(k[along_v], 4e-5, rtol=1e-12)
+    diagonal = ~along_u & ~along_v
+    assert diagonal.any()
+    cos2 = e[diagonal, 0] ** 2 / np.einsum("hp,hp->h", e[diagonal], e[diagonal])
+    np.testing.assert_allclose(k[diagonal], (np.sqrt(4e-5) * (1 - cos2) + np.sqrt(1e-5) * cos2) ** 2,
+                               rtol=1e-12)
+
+
+def test_different_warp_and_weft_bending_needs_rest_uv(tmp_path):
+    from clothtool.io.ply import write_ply
+    from clothtool.sim.model.builder import build_model
+
+    uv, faces, _ = strip(0.05, 0.02, 0.01, "grid")
+    x = np.concatenate([uv, np.zeros((len(uv), 1))], axis=1)
+    write_ply(tmp_path / "plain.ply", x, faces)
+    config = load_config({"mesh": {"ply": str(tmp_path / "plain.ply")},
+                          "material": {"bend": [2e-5, 1e-5]}})
+    with pytest.raises(InputError, match="material.bend: different warp and weft values need "
+                                         "rest uv"):
+        build_model(config)
+
+
+def test_a_polar_disc_covers_the_disc_with_rings():
+    """Rings every spacing (15 at 10 mm), the pedestal's 9 cm one among them; counter-clockwise
+    triangles covering the disc within 0.1 % (the rim's polygon is short of the circle)."""
+    uv, faces = disc(0.15, 0.01, "polar")
+    r = np.hypot(uv[:, 0], uv[:, 1])
+    assert np.sum(np.abs(r - 0.09) < 1e-12) > 50 and np.isclose(r.max(), 0.15)
+    e1, e2 = uv[faces[:, 1]] - uv[faces[:, 0]], uv[faces[:, 2]] - uv[faces[:, 0]]
+    area = 0.5 * (e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0])
+    assert np.all(area > 0) and area.sum() == pytest.approx(np.pi * 0.15 ** 2, rel=1e-3)

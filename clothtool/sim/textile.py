@@ -15,6 +15,9 @@ Known answers:
   1/(1/(2K) + 1/(4k_h)), K = 2k_u k_v/(k_u + k_v) (uniaxial stress, free contraction);
   a strip hanging under its own weight lengthens by ρgL²/(2k) for the stiffness k along it;
 - :func:`drape_coefficient`: (A_shadow − A_pedestal)/(A_disc − A_pedestal).
+
+The tests on a material (the config's ``material`` keys): :func:`cusick_drape` simulates the
+drape tester, :func:`cantilever_bending_length` the cantilever and reads its bending length.
 """
 
 import numpy as np
@@ -85,7 +88,62 @@ def _rasterise(p, faces, radius, pixels):
     return covered.sum() * cell * cell
 
 
+def cusick_drape(material, spacing=0.01, kind="grid", *, seconds=3.0, fps=60, seed=1):
+    """(drape coefficient, final state, faces) of the Cusick test (BS 5058: a 30 cm disc on an
+    18 cm pedestal) of ``material`` (a mapping of ``material`` keys), simulated for
+    ``seconds`` at ``fps`` (implicit, BDF2, PCG tolerance 1e-3) from the flat disc with a
+    6-fold ripple of 2 mm at the rim, which seeds the folds alike on every mesh."""
+    import tempfile
+
+    from clothtool.sim.model.config import load_config
+    from clothtool.sim.model.methods import make_integrator
+
+    radius, pedestal = CUSICK
+    uv, faces = disc(radius, spacing, kind, seed=seed)
+    r, phi = np.hypot(uv[:, 0], uv[:, 1]), np.arctan2(uv[:, 1], uv[:, 0])
+    with tempfile.TemporaryDirectory() as tmp:
+        model = specimen_model(uv, faces, np.flatnonzero(r <= pedestal + 1e-9), material, tmp)
+    solver = load_config({"mesh": {"grid": {}}, "solver": {"tolerance": 1e-3}}).solver
+    integrator = make_integrator(model, solver, 1.0 / fps)
+    state = model.initial_state()
+    state.x[:, 2] = -0.002 * np.clip(r - pedestal, 0.0, None) / (radius - pedestal) * np.cos(6 * phi)
+    for _ in range(int(round(seconds * fps))):
+        integrator.step(state)
+    return drape_coefficient(state.x, faces, pedestal, radius, (0.0, 0.0, 0.0)), state, faces
+
+
+def cantilever_bending_length(material, direction="warp", divisions=20, width=0.025):
+    """The bending length c (m) the simulated cantilever of ``material`` shows, cut along warp
+    (u) or weft (v): a strip of overhang 2c₀ (c₀ = (B/(ρg))^(1/3) of its own ``bend`` in that
+    direction) clamped flat, brought to static equilibrium; the rigidity k whose elastica
+    drops its tip as far, c = (k/(ρg))^(1/3)."""
+    import tempfile
+
+    from scipy.optimize import brentq
+
+    from clothtool.sim.model.config import STANDARD_GRAVITY, load_config
+    from clothtool.sim.solve.statics import static_equilibrium
+
+    m = load_config({"mesh": {"grid": {"nx": 2, "ny": 2}}, "material": dict(material)}).material
+    bend = m.bend if isinstance(m.bend, tuple) else (m.bend, m.bend)
+    rho_g = m.density * STANDARD_GRAVITY
+    length = 2.0 * (bend[0 if direction == "warp" else 1] / rho_g) ** (1.0 / 3.0)
+    uv, faces, held = strip(length, width, length / divisions)
+    if direction == "weft":  # the strip's axis along v
+        uv = uv @ np.array([[0.0, 1.0], [-1.0, 0.0]])
+    with tempfile.TemporaryDirectory() as tmp:
+        x = static_equilibrium(specimen_model(uv, faces, held, material, tmp))
+    tip = np.flatnonzero(np.abs(uv).max(axis=1) >= length - 1e-9 * length)
+    drop = -x[tip, 2].mean()
+    k = brentq(lambda k: elastica_tip_drop(length, k, m.density) - drop,
+               rho_g * (length / 3.0) ** 3, rho_g * length ** 3, rtol=1e-10)  # c in [2/3, 2] c₀
+    return (k / rho_g) ** (1.0 / 3.0)
+
+
 # ---------------------------------------------------------------------------- specimens
+
+CUSICK = (0.15, 0.09)  # m: the disc's and the pedestal's radius (BS 5058)
+CUSICK_DAMPING = 0.05  # s: the drape tests' damping, so that the disc comes to rest in 3 s
 
 
 def specimen_model(uv, faces, pinned, material, folder, gravity=(0.0, 0.0, -STANDARD_GRAVITY)):
@@ -153,8 +211,19 @@ def strip(length, width, spacing, kind="grid", *, clamp=True, seed=0):
 
 def disc(radius, spacing, kind="grid", *, seed=0):
     """A disc of ``radius`` m centred on the origin: ``grid`` (criss-cross grid clipped to the
-    circle, with a ring of boundary points), ``rot45`` (the same grid turned 45°) or
-    ``delaunay`` (jittered points). Returns (uv (N, 2), faces (M, 3))."""
+    circle, with a ring of boundary points), ``rot45`` (the same grid turned 45°),
+    ``delaunay`` (jittered points) or ``polar`` (concentric rings ``spacing`` apart, each with
+    points ``spacing`` apart along it, every other ring turned by half a step; Delaunay).
+    Returns (uv (N, 2), faces (M, 3))."""
+    if kind == "polar":
+        pts = [np.zeros((1, 2))]
+        rings = int(round(radius / spacing))
+        for k in range(1, rings + 1):
+            r = radius * k / rings
+            n = int(round(2 * np.pi * r / spacing))
+            phi = 2 * np.pi * (np.arange(n) + 0.5 * (k % 2)) / n
+            pts.append(r * np.stack([np.cos(phi), np.sin(phi)], axis=1))
+        return _delaunay(np.concatenate(pts), spacing)
     rng = np.random.default_rng(seed)
     n_ring = int(np.ceil(2 * np.pi * radius / spacing))
     phi = 2 * np.pi * np.arange(n_ring) / n_ring

@@ -46,12 +46,20 @@ PRUNE = 1e-10  # |Q_ij| ≤ PRUNE·√(Q_ii Q_jj) is rounding of a cancelled ent
 SQRT2 = np.sqrt(2.0)
 
 
-def hessian_bending_matrix(uv, faces, rigidity=None):
+def hessian_bending_matrix(uv, faces, rigidity=None, anisotropy=1.0):
     """Q (N × N scipy CSR, symmetric PSD) of a flat pattern uv (N, 2), faces (M, 3): unit
-    rigidity, or Σ_v k_v A_v Ĥ_vᵀ W_v Ĥ_v with ``rigidity`` k_v (N,) per vertex."""
+    rigidity, or Σ_v k_v A_v Ĥ_vᵀ W_v Ĥ_v with ``rigidity`` k_v (N,) per vertex.
+
+    ``anisotropy`` B_u/B_v: the orthotropic plate ½(B_u x_uu² + 2k x_uv² + B_v x_vv²) with
+    k = √(B_u B_v) (the twist at the geometric mean, Huber's plate with zero Poisson ratio) is
+    the isotropic plate of rigidity k on the pattern (s, t) = (u/a, a v), a = (B_u/B_v)^(1/8):
+    x_ss = a² x_uu, x_tt = x_vv/a², x_st = x_uv and dA_st = dA_uv, so k a⁴ = B_u, k/a⁴ = B_v.
+    Every property above (exact on quadratics, each direction weighed by its area) carries
+    over."""
     import scipy.sparse as sps  # 0.4 s to import: only models with plate bending pay it
 
-    uv = np.asarray(uv, np.float64)
+    a = anisotropy ** 0.125
+    uv = np.asarray(uv, np.float64) * np.array([1.0 / a, a])
     uv = uv - uv.mean(axis=0)
     faces = np.asarray(faces, np.int64)
     n = len(uv)

@@ -98,7 +98,7 @@ class ModelBuilder:
         self.tri_stretch = np.tile(np.concatenate([k, b]), (m, 1))
         self.tri_shear = np.full(m, material.shear)
         self.tri_density = np.full(m, material.density)
-        self.tri_bend = np.full(m, material.bend)
+        self.tri_bend = np.tile(_bend_pair(material.bend, 1.0), (m, 1))
         self.tri_damping = np.full(m, material.damping)
         return self
 
@@ -151,8 +151,10 @@ class ModelBuilder:
                                   panel.rest_stretch if panel.rest_stretch is not None
                                   else tuple(old[2:]), mesh, here)
                 self.tri_stretch[tri] = np.concatenate([k, b])
+            if panel.bend is not None:
+                self.tri_bend[tri] = _bend_pair(panel.bend, self._plate_rigidity()[1])
             for attr, value in (("tri_shear", panel.shear), ("tri_density", panel.density),
-                                ("tri_bend", panel.bend), ("tri_damping", panel.damping)):
+                                ("tri_damping", panel.damping)):
                 if value is not None:
                     getattr(self, attr)[tri] = value
         return self
@@ -256,7 +258,8 @@ class ModelBuilder:
             from clothtool.sim.energies.plate import hessian_bending_matrix
 
             uv = mesh.uv if mesh.uv is not None else _plane_pattern(mesh.rest3d)
-            q = hessian_bending_matrix(uv, faces, self._per_vertex(self.tri_bend))
+            rigidity, anisotropy = self._plate_rigidity()
+            q = hessian_bending_matrix(uv, faces, self._per_vertex(rigidity), anisotropy)
             plate = (q.indptr.astype(np.int64), q.indices.astype(np.int64), q.data)
         membrane_model = self._membrane_model()
         terms = _elastic_terms(faces, dr_inv, self.area, self.tri_stretch, self.tri_shear,
@@ -287,7 +290,8 @@ class ModelBuilder:
             if plate is not None:  # k_v β_v per vertex, on the plate's own sparsity
                 from clothtool.sim.energies.plate import on_pattern
 
-                damped = hessian_bending_matrix(uv, faces, self._per_vertex(self.tri_bend * beta))
+                damped = hessian_bending_matrix(uv, faces, self._per_vertex(rigidity * beta),
+                                                anisotropy)
                 damped_plate = (*plate[:2], on_pattern(q, damped))
             damping_terms = _elastic_terms(faces, dr_inv, self.area, scaled,
                                            self.tri_shear * beta, bend_model, damped_plate, n,
@@ -322,6 +326,16 @@ class ModelBuilder:
         weight = np.bincount(faces.ravel(), np.repeat(self.area, 3), minlength=n)
         return np.bincount(faces.ravel(), np.repeat(self.area * value, 3), minlength=n) / weight
 
+    def _plate_rigidity(self):
+        """(√(B_u B_v) per triangle, B_u/B_v): one warp/weft ratio for the whole mesh (the
+        plate's orthotropy is a scaling of its pattern)."""
+        bent = self.tri_bend[np.all(self.tri_bend > 0.0, axis=1)]
+        ratio = bent[:, 0] / bent[:, 1] if len(bent) else np.ones(1)
+        if np.ptp(ratio) > 1e-12 * ratio.max():
+            raise InputError("materials: a panel's bend [warp, weft] needs the warp/weft "
+                             "ratio of material.bend (one number keeps that ratio)")
+        return np.sqrt(self.tri_bend.prod(axis=1)), float(ratio[0])
+
     def _membrane_model(self):
         """``material.membrane_model``; ``nodal`` (and ``triangle`` when the membrane is off)."""
         model = self.material.membrane_model
@@ -353,10 +367,13 @@ class ModelBuilder:
         hinge, hinge_faces = hinges(faces, len(mesh.positions))
         if len(hinge) == 0:
             return empty
+        if not flat_pattern(mesh) and np.any(self.tri_bend[:, 0] != self.tri_bend[:, 1]):
+            raise InputError("material.bend: different warp and weft values need rest uv (a "
+                             "grid, or a PLY or OBJ with texture coordinates)")
         tri_area = self.area[hinge_faces]
-        edge2 = _hinge_rest_length2(mesh, hinge, hinge_faces)
-        bend = self.tri_bend[hinge_faces].mean(axis=1)
-        coef = bend * edge2 / (2.0 * tri_area.sum(axis=1))
+        edge = _hinge_rest_edges(mesh, hinge, hinge_faces)
+        bend = _hinge_rigidity(self.tri_bend[hinge_faces].mean(axis=1), edge)
+        coef = bend * np.einsum("hp,hp->h", edge, edge) / (2.0 * tri_area.sum(axis=1))
         # a uv pattern is flat by definition; a PLY without uv rests in its own shape
         flat = flat_pattern(mesh)
         rest_angle = np.zeros(len(hinge)) if flat else dihedral_angles(mesh.rest3d, hinge)
@@ -412,6 +429,14 @@ def _bind(terms, pattern):
     return constant
 
 
+def _bend_pair(bend, ratio):
+    """(B_u, B_v) of a ``bend``: a pair as it is, a number k as k (√ratio, 1/√ratio) (the
+    material's warp/weft ratio B_u/B_v)."""
+    if isinstance(bend, tuple):
+        return np.asarray(bend, np.float64)
+    return bend * np.array([np.sqrt(ratio), 1.0 / np.sqrt(ratio)])
+
+
 def _plane_pattern(rest3d):
     """(N, 2) coordinates of a rest shape in its own plane, or None when it is not flat
     (a vertex farther than PLANAR × its extent from the least-squares plane)."""
@@ -431,19 +456,29 @@ def _rest_edges(mesh):
     return mesh.rest3d[f] - mesh.rest3d[np.roll(f, 1, axis=1)]
 
 
-def _hinge_rest_length2(mesh, hinge, hinge_faces):
-    """(H,) squared rest length of each hinge edge (i, j): in the first face's corner uv for a
-    pattern per corner (both faces agree unless the hinge is a seam in uv), else of rest3d."""
+def _hinge_rest_edges(mesh, hinge, hinge_faces):
+    """(H, 2) or (H, 3) rest vector of each hinge edge (i, j): in the first face's corner uv
+    for a pattern per corner (both faces agree unless the hinge is a seam in uv), else of
+    rest3d ((u, v, 0) with uv per vertex)."""
     if mesh.corner_uv is None:
-        d = mesh.rest3d[hinge[:, 1]] - mesh.rest3d[hinge[:, 0]]
-        return np.einsum("hp,hp->h", d, d)
+        return mesh.rest3d[hinge[:, 1]] - mesh.rest3d[hinge[:, 0]]
     face = mesh.faces[hinge_faces[:, 0]]  # (H, 3)
     uv = mesh.corner_uv[hinge_faces[:, 0]]  # (H, 3, 2)
     rows = np.arange(len(hinge))
     ci = np.argmax(face == hinge[:, :1], axis=1)
     cj = np.argmax(face == hinge[:, 1:2], axis=1)
-    d = uv[rows, cj] - uv[rows, ci]
-    return np.einsum("hp,hp->h", d, d)
+    return uv[rows, cj] - uv[rows, ci]
+
+
+def _hinge_rigidity(bend, edge):
+    """Each hinge's k_b from (B_u, B_v) (H, 2) and its rest edge in the pattern: the
+    orthotropic plate's rigidity across the edge, (√B_u sin²φ + √B_v cos²φ)², φ the edge's
+    angle to u (an edge along u folds the sheet along v: B_v)."""
+    if np.array_equal(bend[:, 0], bend[:, 1]):
+        return bend[:, 0].copy()
+    length2 = np.einsum("hp,hp->h", edge[:, :2], edge[:, :2])
+    cos2 = np.divide(edge[:, 0] ** 2, length2, out=np.full(len(edge), 0.5), where=length2 > 0)
+    return (np.sqrt(bend[:, 0]) * (1.0 - cos2) + np.sqrt(bend[:, 1]) * cos2) ** 2
 
 
 def _warp_weft(stretch, rest_stretch, mesh, key):

@@ -23,7 +23,9 @@ from typing import Mapping
 
 import yaml
 
+from clothtool import fabrics, lab_units
 from clothtool.errors import InputError
+from clothtool.lab_units import STANDARD_GRAVITY
 from clothtool.sim.model import methods
 from clothtool.sim.model.schema import (Section, as_dict, choice, choices, flag, integer, listing,
                                         number, one_of, pair_or_number, path, resolve_paths,
@@ -35,7 +37,6 @@ PLANES = ("xy", "xz", "yz")
 BEND_MODELS = ("hessian", "dihedral", "quadratic")
 MEMBRANE_MODELS = ("triangle", "nodal")
 DAMPING_MODELS = ("strain", "frozen")  # the strains' change potential, or βK(x_n) frozen
-STANDARD_GRAVITY = 9.81  # m/s², of bending_length → bend (k_b = ρ g c³)
 METHODS = tuple(methods.METHODS)
 PRECONDITIONERS = ("jacobi", "multigrid")
 PBD_VARIANTS = ("gauss-seidel", "jacobi", "hierarchical")
@@ -176,16 +177,60 @@ class MeshSpec(Section):
 # ---------------------------------------------------------------------------- material
 
 
+def one_word(value, key):
+    """A non-empty string (checked against its table later)."""
+    if not isinstance(value, str) or not value:
+        raise type_error(key, "a name", value)
+    return value
+
+
+KES_KEYS = {"density": "W", "bend": "B", "shear": "G", "stretch": "EMT"}
+
+
+def both_or_neither(bend, key):
+    """A [warp, weft] ``bend`` bends both ways or not at all."""
+    if isinstance(bend, tuple) and (bend[0] > 0.0) != (bend[1] > 0.0):
+        raise InputError(f"{key}: warp and weft both > 0, or 0 (no bending)")
+
+
+@dataclass(frozen=True)
+class Kes(Section):
+    """KES-F values (Kawabata): B, G, EMT, W in the lab's units, each optional; B and EMT one
+    number or [warp, weft]."""
+
+    B: float | tuple | None = setting(None, pair_or_number(exclusive=True),
+                                      "gf·cm²/cm, bending rigidity: `bend` = 9.80665e-5 B N·m "
+                                      "(warp, weft)")
+    G: float | None = setting(None, positive,
+                              "gf/(cm·deg), shear stiffness: `shear` = 56.19 G N/m")
+    EMT: float | tuple | None = setting(None, pair_or_number(exclusive=True),
+                                        "%, strain at 500 gf/cm: `stretch` = 490.33/(EMT/100) "
+                                        "N/m, the secant (warp, weft)")
+    W: float | None = setting(None, positive, "mg/cm², mass per area: `density` = 0.01 W kg/m²")
+
+    def finish(self, given, key):
+        if not given:
+            raise InputError(f"{key}: give at least one of B, G, EMT and W")
+        for name in given:
+            if getattr(self, name) is None:
+                raise InputError(f"{key}.{name}: missing value")
+        return self
+
+
 @dataclass(frozen=True)
 class Material(Section):
     """Areal density (kg/m²), membrane stiffnesses (N/m), bending stiffness (N·m), damping (s).
 
     ``stretch`` and ``rest_stretch`` are a number or [along u (warp), along v (weft)];
-    ``rest_stretch`` holds Baraff–Witkin's rest length factors b_u, b_v. ``bending_length``
-    c (m, the cantilever test's) may replace ``bend``: k_b = ρ g c³ with g = 9.81 m/s².
+    ``rest_stretch`` holds Baraff–Witkin's rest length factors b_u, b_v; ``bend`` too may be
+    [warp, weft]. ``bending_length`` c (m, the cantilever test's; a number or
+    [warp, weft]) may replace ``bend``: k_b = ρ g c³ with g = 9.81 m/s².
     ``membrane_model``: stretch and shear per ``triangle`` (linear elements), or ``nodal``:
     warp and weft stretch on each vertex's smoothed metric FᵀF (which locks less when the
     sheet bends off the mesh's lines) and shear per triangle; implicit method only.
+    ``preset`` (a measured fabric, :mod:`clothtool.fabrics`) and ``kes`` (KES-F values,
+    :mod:`clothtool.lab_units`) fill the keys the section does not give; ``kes`` wins
+    over ``preset``.
     """
 
     density: float = setting(0.2, positive, "kg/m²")
@@ -200,9 +245,13 @@ class Material(Section):
                                           "along u). Different warp and weft values need rest "
                                           "uv (a grid, or a PLY with texture coordinates)")
     shear: float = setting(50.0, non_negative, "N/m, in-plane shear stiffness")
-    bend: float = setting(1.0e-5, non_negative,
-                          "N·m, flexural rigidity per unit width ([Textile "
-                          "units](#textile-units-and-tests)); 0 turns bending off")
+    bend: float | tuple = setting(1.0e-5, pair_or_number(exclusive=False),
+                                  "N·m, flexural rigidity per unit width: one number or "
+                                  "`[warp, weft]`, bending along u and along v (the twist "
+                                  "takes √(warp · weft); different values need rest uv; "
+                                  "the hinge models take each hinge's rigidity across its "
+                                  "edge) ([Textile units](#textile-units-and-tests)); 0 turns "
+                                  "bending off")
     damping: float = setting(0.01, non_negative,
                              "s, stiffness-proportional (Rayleigh) damping; 0 = none")
     bend_model: str = setting("hessian", choice(BEND_MODELS),
@@ -221,10 +270,11 @@ class Material(Section):
                                  "which no rigid motion feels (a sheet on a turntable "
                                  "follows it, a crumpled start relaxes as at small steps; "
                                  "more Newton steps than `frozen`; see Time stepping)")
-    bending_length: float | None = setting(None, positive,
-                                           "m, instead of `bend`: the cantilever test's bending "
-                                           "length c, `bend` = `density` · 9.81 · c³ (giving "
-                                           "both is an error)")
+    bending_length: float | tuple | None = setting(None, pair_or_number(exclusive=True),
+                                                   "m, instead of `bend`: the cantilever test's "
+                                                   "bending length c (or `[warp, weft]`), "
+                                                   "`bend` = `density` · 9.81 · c³ (giving "
+                                                   "both is an error)")
     membrane_model: str = setting("triangle", choice(MEMBRANE_MODELS),
                                   "`triangle` (stretch and shear per linear triangle) or "
                                   "`nodal`: warp and weft stretch on each vertex's smoothed "
@@ -232,14 +282,38 @@ class Material(Section):
                                   "the mesh (the drape table's spread between a grid, a turned "
                                   "grid and a Delaunay mesh). Needs a rest pattern per vertex (a "
                                   "grid, or a PLY with uv) and `solver.method: implicit`")
+    preset: str | None = setting(None, one_word,
+                                 "a measured fabric (Wang et al. 2011, as ARCSim ships them): "
+                                 "its density, stretch, shear and bend fill the keys not given "
+                                 "([Measured fabrics](#measured-fabrics-materialpreset))")
+    kes: Kes | None = section(Kes, optional=True,
+                              doc="KES-F values: they fill density, bend, shear and stretch "
+                                  "(giving a key and its KES value is an error; "
+                                  "[Textile units](#textile-units-and-tests))")
 
     def finish(self, given, key):
-        """``bend`` = ρ g c³ from ``bending_length`` c and ``density`` ρ (not both bend and c)."""
+        """The keys not given from ``preset``, then from ``kes``; ``bend`` = ρ g c³ from
+        ``bending_length`` c and ``density`` ρ (not both bend and c)."""
+        values = {}
+        if self.preset is not None:
+            values = {k: v for k, v in fabrics.preset(self.preset, f"{key}.preset").items()
+                      if k not in given and not (k == "bend" and self.bending_length)}
+        if self.kes is not None:
+            for name, value in lab_units.from_kes(as_dict(self.kes)).items():
+                if name in given:
+                    raise InputError(f"{key}: give one of {name} and kes.{KES_KEYS[name]}, "
+                                     "not both")
+                values[name] = value
+        material = replace(self, **values)
+        both_or_neither(material.bend, f"{key}.bend")
         if self.bending_length is None:
-            return self
-        if "bend" in given:
-            raise InputError(f"{key}: give one of bend (N·m) and bending_length (m), not both")
-        return replace(self, bend=self.density * STANDARD_GRAVITY * self.bending_length ** 3)
+            return material
+        if "bend" in given or (self.kes is not None and self.kes.B is not None):
+            raise InputError(f"{key}: give one of bend (N·m), kes.B and bending_length (m)")
+        c = self.bending_length
+        rho_g = material.density * STANDARD_GRAVITY
+        return replace(material, bend=tuple(rho_g * x ** 3 for x in c) if isinstance(c, tuple)
+                       else rho_g * c ** 3)
 
 
 @dataclass(frozen=True)
@@ -253,11 +327,22 @@ class PanelMaterial(Section):
     rest_stretch: float | tuple | None = setting(None, pair_or_number(exclusive=True),
                                                  "as `material.rest_stretch`")
     shear: float | None = setting(None, non_negative, "as `material.shear`")
-    bend: float | None = setting(None, non_negative, "as `material.bend`")
+    bend: float | tuple | None = setting(None, pair_or_number(exclusive=False),
+                                         "as `material.bend`")
     damping: float | None = setting(None, non_negative, "as `material.damping`")
     faces: tuple | None = setting(None, vertex_list,
                                   "the panel's triangles, when NAME is not an OBJ group or "
                                   "material")
+    preset: str | None = setting(None, one_word,
+                                 "as `material.preset`: the fabric's density, stretch, shear "
+                                 "and bend for the panel's keys not given")
+
+    def finish(self, given, key):
+        both_or_neither(self.bend, f"{key}.bend")
+        if self.preset is None:
+            return self
+        return replace(self, **{k: v for k, v in fabrics.preset(self.preset, f"{key}.preset")
+                                .items() if k not in given})
 
 
 @listing(PanelMaterial, ".NAME")
@@ -777,6 +862,8 @@ def _record(value):
                        else f.default)
             if f.name == "bending_length" and getattr(value, "bend", None) is not None:
                 continue  # resolved into bend
+            if f.name in ("preset", "kes"):
+                continue  # resolved into the keys they fill
             if f.name != "source" and (v != default or f.name in getattr(value, "required", ())):
                 out[f.name] = ([{c.kind: _record(c)} for c in v] if f.name == "colliders"
                                else _record(v))
