@@ -46,7 +46,8 @@ from benchmarks.common import markdown_table, write_csv
 ROOT = Path(__file__).resolve().parents[1]
 HERE = Path(__file__).resolve().parent
 BLENDER_INSTALL = "python3.11 -m venv .venv-bpy && .venv-bpy/bin/pip install bpy==5.0.1"
-NEWTON_INSTALL = "python3 -m venv .venv-newton && .venv-newton/bin/pip install newton warp-lang"
+NEWTON_INSTALL = ("python3 -m venv .venv-newton && .venv-newton/bin/pip install newton "
+                  "warp-lang usd-core")
 SPHERE_SEGMENTS, SPHERE_RINGS = 48, 24
 DISTANCE = 0.002  # m: collision and self-collision distances of the drop
 # The converged sheet: BDF2 at 4 steps per frame, Newton to 1e-4 m/s (the default 0.04), PCG
@@ -209,7 +210,8 @@ def scene_rows(name, tmp, blender, n=None, frames=None):
                **{k: v for k, v in run.items() if k != "positions"}}
         x = run.get("positions")
         if x is not None:
-            row["crossing frames (ipctk)"] = f"{crossing_frames(x, arrays['faces'], obstacle)}/{len(x)}"
+            crossing = crossing_frames(x, arrays["faces"], obstacle)
+            row["crossing frames (ipctk)"] = f"{crossing}/{len(x)}"
             if obstacle is not None:
                 centre, radius = arrays["sphere"][:3], arrays["sphere"][3]
                 depth = radius - np.linalg.norm(x - centre, axis=2).min()

@@ -75,5 +75,5 @@ if __name__ == "__main__":
     scene = dict(np.load(sys.argv[1]))
     positions, cpu, quality = run(scene)
     np.savez(sys.argv[2], positions=positions, cpu=cpu, quality=quality)
-    print(f"blender: {positions.shape[1]} vertices, {len(positions) - 1} frames, quality {quality}, "
-          f"{cpu:.2f} s CPU")
+    print(f"blender: {positions.shape[1]} vertices, {len(positions) - 1} frames, quality "
+          f"{quality}, {cpu:.2f} s CPU")

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from benchmarks import bench_peers
-from benchmarks.bench_peers import (BLENDER_INSTALL, COLUMNS, HERE, crossing_frames, ratios, run_peer,
-                                    sag, scene, scene_rows, uv_sphere, write_tables)
+from benchmarks.bench_peers import (BLENDER_INSTALL, COLUMNS, HERE, crossing_frames, ratios,
+                                    run_peer, sag, scene, scene_rows, uv_sphere, write_tables)
 
 
 def test_the_table_names_a_missing_peer_with_its_install_line(tmp_path):
@@ -17,7 +17,8 @@ def test_the_table_names_a_missing_peer_with_its_install_line(tmp_path):
         {"scene": "sheet", "simulator": "clothtool (defaults)", "CPU s": 2.0},
         {"scene": "sheet", "simulator": "Blender cloth (defaults)", "CPU s": 5.0},
         {"scene": "twist", "simulator": "clothtool (sample_data/twist.yaml)", "CPU s": 4.0},
-        {"scene": "twist", "simulator": "NVIDIA Newton VBD", "note": "not installed: pip install x"},
+        {"scene": "twist", "simulator": "NVIDIA Newton VBD",
+         "note": "not installed: pip install x"},
     ])
     assert rows[0]["× ours"] == 1.0 and rows[1]["× ours"] == 2.5
     assert "× ours" not in rows[3]
