@@ -227,11 +227,11 @@ def scene_rows(name, tmp, blender, n=None, frames=None):
 
 def twist_rows(tmp, newton):
     """Ours and Newton's VBD (or its skip row) on the twist."""
+    from clothtool.sim.model.builder import build_model
+    from clothtool.sim.model.config import load_config
+
     config = ROOT / "sample_data" / "twist.yaml"
     x, cpu, steps, its = run_ours(config, tmp / "twist_ours")
-    from clothtool.sim.model.config import load_config
-    from clothtool.sim.model.builder import build_model
-
     faces = build_model(load_config(config)).faces
     rows = [{"scene": "twist", "simulator": "clothtool (sample_data/twist.yaml)",
              "vertices": x.shape[1], "frames": len(x) - 1, "CPU s": cpu, "steps/frame": steps,
