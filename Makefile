@@ -2,8 +2,8 @@
 #             and a sheet draped over a body (contact, no intersections), then dress a walking
 #             mannequin in a two-panel skirt (sewn, attached) and render it: a picture and a movie
 # make test   set up .venv and run the test suite
-# make bench  set up .venv (with benchmark extras) and write bench-results/ (the long cases too:
-#             .venv/bin/python -m benchmarks --full)
+# make bench  set up .venv (with benchmark extras) and write bench-results/ (the long cases and
+#             the peers too: .venv/bin/python -m benchmarks --full; README.md: Benchmarks)
 PYTHON ?= python3
 VENV ?= .venv
 PY := $(VENV)/bin/python

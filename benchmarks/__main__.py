@@ -6,7 +6,9 @@
     python -m benchmarks tet             # tetrahedra: kernel vs numpy SVD, readers, 200k × 50 frames
     python -m benchmarks sweep           # clothtool sweep's overhead against N/jobs × one run
     python -m benchmarks textile         # cantilever, hanging strip, drape; what bending costs
-    python -m benchmarks --full [NAMES]  # the long cases too (benchmarks/common.py: FULL)
+    python -m benchmarks peers           # Blender's cloth and NVIDIA Newton's VBD on our scenes
+    python -m benchmarks --full [NAMES]  # the long cases too (benchmarks/common.py: FULL), and
+                                         # the benchmarks of FULL_ONLY
 """
 
 import importlib
@@ -14,6 +16,10 @@ import os
 import pathlib
 import sys
 import time
+
+# Run only under --full or when named: the peers take minutes each (Newton's twist alone
+# about 5 minutes of CPU) and need their own venvs.
+FULL_ONLY = ("bench_peers",)
 
 
 def main(argv):
@@ -26,6 +32,8 @@ def main(argv):
     names = sorted(p.stem for p in here.glob("bench_*.py"))
     if argv:
         names = [n for n in names if n.removeprefix("bench_") in argv]
+    elif os.environ.get("CLOTHTOOL_BENCH_FULL") != "1":
+        names = [n for n in names if n not in FULL_ONLY]
     for name in names:
         started = time.perf_counter()
         print(f"== {name}", flush=True)

@@ -2,7 +2,8 @@
 
     python benchmarks/bench_contact_scenes.py [OUT_DIR]          # default bench-results/
 
-- the twist (``sample_data/twist.yaml``, 50 × 50, 6 s at 60 fps, one step per frame): median
+- the twist (``sample_data/twist.yaml``, 50 × 50, 60 fps, one step per frame; its first 2 s,
+  ``--full``: all 6 s): median
   wall and CPU ms per frame (the CPU time of the process is what other jobs on the shared
   machine disturb least), against NVIDIA Newton's own cloth-twist example (VBD with
   self-contact, 10 substeps × 4 iterations) run by its anchor script
@@ -14,7 +15,7 @@
   test on the cloth and its colliders, and the smallest ``min_separation`` of stats.csv;
 - a scene without contact (the 64 × 64 hanging sheet, 10 frames, one Newton step) on this
   tree and on a base revision (``CLOTHTOOL_BASE_REV``, default ``main``; its files from git),
-  alternating, for the ±5 % cost check.
+  alternating (3 runs each, ``--full``: 5), for the ±5 % cost check.
 
 Writes ``contact_scenes.csv`` and ``contact_scenes.md`` into OUT_DIR.
 """
@@ -32,7 +33,7 @@ from pathlib import Path
 import ipctk
 import numpy as np
 
-from benchmarks.common import markdown_table, write_csv, write_doc_table
+from benchmarks.common import full_or, markdown_table, write_csv, write_doc_table
 from clothtool.contact.broadphase import mesh_edges
 from clothtool.contact.intersect import has_intersections
 from clothtool.io.ply import read_ply
@@ -42,6 +43,10 @@ from clothtool.sim.model.colliders import load_colliders
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENES = ("twist", "drape", "stack", "tablecloth")
+# The twist's frames: its first 2 s by default (the sheet wound once, the contact dense from
+# frame 60 on), all 6 s under --full; Newton's twist runs as many. The other scenes full length.
+TWIST_FRAMES = full_or(360, 120)
+NO_CONTACT_REPEAT = full_or(5, 3)  # alternating runs of the scene without contact
 NEWTON_SCRIPT = Path(os.environ.get("CLOTHTOOL_NEWTON_TWIST",
                                     ROOT.parent / "shared" / "anchors" / "newton_twist.py"))
 NEWTON_PYTHON = os.environ.get("CLOTHTOOL_NEWTON_PYTHON", sys.executable)
@@ -73,8 +78,9 @@ def check_frames(config_path, out_dir):
 def run_scene(name, out_root):
     config_path = ROOT / "sample_data" / f"{name}.yaml"
     out = out_root / name
+    over = {"time.frames": TWIST_FRAMES} if name == "twist" else None
     started, cpu = time.perf_counter(), time.process_time()
-    result = simulate(config_path, output_dir=out, progress=False)
+    result = simulate(config_path, output_dir=out, overrides=over, progress=False)
     wall, cpu = time.perf_counter() - started, time.process_time() - cpu
     frames = result.frames_written - 1
     with open(out / "stats.csv") as fh:
@@ -87,7 +93,7 @@ def run_scene(name, out_root):
             "min separation mm": 1e3 * separation}
 
 
-def newton_twist(frames=360):
+def newton_twist(frames=TWIST_FRAMES):
     """Newton's figures from its anchor script, or None where it does not run."""
     if not NEWTON_SCRIPT.exists():
         return None
@@ -125,7 +131,7 @@ def base_rev():
     return None
 
 
-def no_contact_cost(rev, repeat=5):
+def no_contact_cost(rev, repeat=NO_CONTACT_REPEAT):
     """(ms per step on this tree, on ``rev``): CPU time of the 64 × 64 hanging sheet, alternating."""
     config = ROOT / "sample_data" / "hanging_sheet.yaml"
     with tempfile.TemporaryDirectory() as tmp:
@@ -165,8 +171,8 @@ def run(out_dir):
             "writing and the exact check of every frame, per frame. Crossing frames: frames in "
             "which some cloth triangle crosses another or a collider's. Written by "
             "`python benchmarks/bench_contact_scenes.py`.\n\n" + markdown_table(rows, columns)
-            + (f"\nA scene without contact (64 × 64 hanging sheet, CPU ms per step, median of 5 "
-               f"alternating runs): this tree {this:.2f}, {rev} {base:.2f} "
+            + (f"\nA scene without contact (64 × 64 hanging sheet, CPU ms per step, median of "
+               f"{NO_CONTACT_REPEAT} alternating runs): this tree {this:.2f}, {rev} {base:.2f} "
                f"({100.0 * (this / base - 1.0):+.1f} %).\n" if rev else
                f"\nNo {BASE_REV} in this clone: no comparison of a scene without contact.\n"))
     (out_dir / "contact_scenes.md").write_text(text)

