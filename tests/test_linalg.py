@@ -100,7 +100,7 @@ def test_preconditioners_stay_positive_definite_on_near_singular_barrier_blocks(
     far as the stored matrix allows (its product carries rounding ε·k/m relative to the
     solution: at 1e22 nothing is left to solve to, and PCG ends finite)."""
     model, matrix = contact_system(k)
-    constraints = ConstraintFilter(model.kind, np.zeros((model.n_vertices, 3)))
+    constraints = ConstraintFilter(model.kind)
     pre = (Hierarchy.for_mesh(model.pattern, model.faces) if preconditioner == "multigrid"
            else BlockJacobi(model.n_vertices))
     pre.setup(matrix, constraints)

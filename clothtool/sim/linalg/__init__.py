@@ -1,6 +1,6 @@
 """The linear algebra of the Newton step, apart from what it solves.
 
-- :mod:`~clothtool.sim.linalg.filter`: Baraff–Witkin's constraint filter (free, pinned, sliding);
+- :mod:`~clothtool.sim.linalg.filter`: Baraff–Witkin's constraint filter (free, pinned);
 - :mod:`~clothtool.sim.linalg.blocks`: block-CSR matrices of 3×3 blocks, their assembly
   and product, and the constraint filter's per-vertex data;
 - :mod:`~clothtool.sim.linalg.multigrid`: the aggregation multigrid preconditioner;

@@ -95,12 +95,11 @@ class BlockMatrix:
 
 
 class ConstraintFilter:
-    """Baraff–Witkin's S per vertex (``filter``): ``kind`` (N,) int8 FREE/PINNED/SLIDING and
-    ``normal`` (N, 3) for the sliding ones; ``active`` is False when nothing is constrained."""
+    """Baraff–Witkin's S per vertex (``filter``): ``kind`` (N,) int8 FREE/PINNED; ``active``
+    is False when nothing is constrained."""
 
-    def __init__(self, kind, normal, active=True):
+    def __init__(self, kind, active=True):
         self.kind = kind
-        self.normal = normal
         self.active = bool(active)
 
 

@@ -12,7 +12,7 @@ smooth error that Jacobi cannot reach:
 - **Per solve**: with piecewise-constant prolongation P, the Galerkin coarse
   matrix PᵀAP is the sum of the fine 3×3 blocks over each slot map — one pass.
   The fine operator is the filtered S A S + (I − S) that PCG works with, so
-  coarse levels see pinned and sliding vertices as held. The coarsest level is
+  coarse levels see pinned vertices as held. The coarsest level is
   factored densely (Cholesky).
 - **Cycle**: on the finest level additive, B = ωD⁻¹ + P B₁ Pᵀ (no product with
   the fine matrix: that costs more than the iterations it saves); on the coarse
@@ -25,7 +25,7 @@ smooth error that Jacobi cannot reach:
 import numpy as np
 from numba import njit
 
-from clothtool.sim.linalg.filter import FREE, PINNED, SLIDING
+from clothtool.sim.linalg.filter import FREE, PINNED
 from clothtool.sim.linalg.blocks import BlockPattern
 from clothtool.vec3 import copy_into, spd_inverse3
 
@@ -92,8 +92,8 @@ class Hierarchy:
     def setup(self, matrix, constraints):
         """Coarse matrices of a :class:`~clothtool.sim.linalg.blocks.BlockMatrix` filtered by a
         :class:`~clothtool.sim.linalg.blocks.ConstraintFilter` (done again inside every solve)."""
-        setup_levels(matrix.values, constraints.kind, constraints.normal, constraints.active,
-                     matrix.floor, self.arrays)
+        setup_levels(matrix.values, constraints.kind, constraints.active, matrix.floor,
+                     self.arrays)
 
     def apply(self, rhs, out):
         """out = B rhs (one cycle; :meth:`setup` first)."""
@@ -147,42 +147,24 @@ NO_MULTIGRID = (np.zeros(1, np.int64), np.zeros(1, np.int64), np.zeros(1, np.int
 
 
 @njit(cache=True)
-def _filtered_block(b, i, j, kind, normal, out):
-    """out = S_i B S_j (+ (I − S_i) on the diagonal, so held vertices stay non-singular)."""
+def _filtered_block(b, i, j, kind, out):
+    """out = S_i B S_j (+ (I − S_i) on the diagonal, so pinned vertices stay non-singular)."""
     copy_into(b, out)
-    for side in range(2):
-        v = i if side == 0 else j
-        if kind[v] == PINNED:
-            out[:, :] = 0.0
-        elif kind[v] == SLIDING:
-            n = normal[v]
-            for q in range(3):
-                if side == 0:  # rows: (I − nnᵀ) out
-                    d = n[0] * out[0, q] + n[1] * out[1, q] + n[2] * out[2, q]
-                    for p in range(3):
-                        out[p, q] -= n[p] * d
-                else:  # columns: out (I − nnᵀ)
-                    d = out[q, 0] * n[0] + out[q, 1] * n[1] + out[q, 2] * n[2]
-                    for p in range(3):
-                        out[q, p] -= d * n[p]
-    if i == j:
-        if kind[i] == PINNED:
-            for p in range(3):
-                out[p, p] += 1.0
-        elif kind[i] == SLIDING:
-            for p in range(3):
-                for q in range(3):
-                    out[p, q] += normal[i, p] * normal[i, q]
+    if kind[i] == PINNED or kind[j] == PINNED:
+        out[:, :] = 0.0
+    if i == j and kind[i] == PINNED:
+        for p in range(3):
+            out[p, p] = 1.0
 
 
 @njit(cache=True)
-def setup_levels(fine, kind, normal, constrained, floor, mg):
+def setup_levels(fine, kind, constrained, floor, mg):
     """Coarse matrices, block-diagonal inverses of every level, Cholesky of the coarsest.
 
     ``floor`` (N,): a lower bound of the eigenvalues of each fine diagonal block (the inertia
     m/ĥ²; zeros when unknown). A coarse block's bound is the sum of its aggregate's (the
     Galerkin block of an aggregate is Σ its fine blocks, PSD terms on top of Σ floors I); a
-    pinned vertex's filtered block is I (bound 1), a sliding one's at least min(floor, 1).
+    pinned vertex's filtered block is I (bound 1).
     The block inverses keep to these bounds (:func:`~clothtool.vec3.spd_inverse3`): contact
     barriers near their singularity store blocks of 1e22·m/ĥ² whose small eigenvalues
     rounding has erased, and the plain cofactor inverse divided by a zero determinant."""
@@ -197,14 +179,12 @@ def setup_levels(fine, kind, normal, constrained, floor, mg):
         lower = floor[i]
         if constrained and kind[i] == PINNED:
             lower = 1.0
-        elif constrained and kind[i] == SLIDING:
-            lower = min(lower, 1.0)
         bound[i] = lower
         bound[node_off[1] + agg[i]] += lower
         for s in range(row_ptr[i], row_ptr[i + 1]):
             j = col[s]
             if constrained and (kind[i] != FREE or kind[j] != FREE):
-                _filtered_block(fine[s], i, j, kind, normal, block)
+                _filtered_block(fine[s], i, j, kind, block)
             else:
                 copy_into(fine[s], block)
             if j == i:

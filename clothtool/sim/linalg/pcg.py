@@ -1,16 +1,15 @@
 """Preconditioned conjugate gradients on a filtered block matrix, and its preconditioners.
 
 The solver is preconditioned conjugate gradients (Hestenes & Stiefel 1952), and
-constraints are handled by Baraff–Witkin's filter (1998, §5.3): S_v = I for a free
-vertex, 0 for a pinned one, I − n nᵀ for one held on a collider surface with normal n.
-The residual and every search direction are filtered, so the constrained components
+pins are handled by Baraff–Witkin's filter (1998, §5.3): S_v = I for a free vertex, 0 for
+a pinned one. The residual and every search direction are filtered, so the pinned components
 of the solution keep their initial (prescribed) values exactly. The stop test is on
 the true relative residual ‖S(b − Ax)‖ / ‖S b‖: when the recurrence says converged,
 the residual is recomputed from its definition and iteration continues if that one
 is not.
 
 The Python side passes a :class:`~clothtool.sim.linalg.blocks.BlockMatrix` (pattern +
-values), a :class:`~clothtool.sim.linalg.blocks.ConstraintFilter` (kind, normal) and a
+values), a :class:`~clothtool.sim.linalg.blocks.ConstraintFilter` (kind) and a
 preconditioner object (:class:`BlockJacobi` or
 :class:`~clothtool.sim.linalg.multigrid.Hierarchy`, :func:`make_preconditioner`); the
 numba kernels underneath take the plain arrays these unpack to. A pair operator
@@ -97,14 +96,14 @@ def _xpby(x, beta, y):
 
 
 @njit(cache=True)
-def _precondition(inv, r, kind, normal, constrained, z, mg):
+def _precondition(inv, r, kind, constrained, z, mg):
     """z = S P⁻¹ r: block Jacobi, or the multigrid V-cycle when mg holds a hierarchy."""
     if len(mg[0]) > 1:
         vcycle(r, z, mg)
     else:
         _apply_inverse(inv, r, z)
     if constrained:
-        apply_filter(z, kind, normal)
+        apply_filter(z, kind)
 
 
 def filtered_pcg(matrix, b, x, constraints, tol, max_iter, preconditioner, extra=NO_PAIRS):
@@ -119,7 +118,7 @@ def filtered_pcg(matrix, b, x, constraints, tol, max_iter, preconditioner, extra
     """
     preconditioner.setup(matrix, constraints)
     return filtered_pcg_arrays(matrix.pattern.row_ptr, matrix.pattern.col, matrix.values, b, x,
-                               constraints.kind, constraints.normal, constraints.active, tol,
+                               constraints.kind, constraints.active, tol,
                                max_iter, preconditioner.inverse, preconditioner.arrays, extra)
 
 
@@ -132,7 +131,7 @@ def _residual_with(row_ptr, col, values, extra, b, x, r):
 
 
 @njit(cache=True)
-def filtered_pcg_arrays(row_ptr, col, values, b, x, kind, normal, constrained, tol, max_iter,
+def filtered_pcg_arrays(row_ptr, col, values, b, x, kind, constrained, tol, max_iter,
                         inv, mg, extra):
     """:func:`filtered_pcg` on plain arrays: ``constrained`` False skips the filter; ``inv``
     the block-Jacobi inverses (:func:`block_jacobi`) and ``mg`` ``NO_MULTIGRID``, or ``mg``
@@ -141,17 +140,17 @@ def filtered_pcg_arrays(row_ptr, col, values, b, x, kind, normal, constrained, t
     n = b.shape[0]
     sb = b.copy()
     if constrained:
-        apply_filter(sb, kind, normal)
+        apply_filter(sb, kind)
     b_norm = np.sqrt(_dot(sb, sb))
     r = np.empty((n, 3))
     z = np.empty((n, 3))
     q = np.empty((n, 3))
     _residual_with(row_ptr, col, values, extra, b, x, r)
     if constrained:
-        apply_filter(r, kind, normal)
+        apply_filter(r, kind)
     if b_norm == 0.0:
         b_norm = 1.0  # nothing to solve for but the prescribed components: absolute test
-    _precondition(inv, r, kind, normal, constrained, z, mg)
+    _precondition(inv, r, kind, constrained, z, mg)
     p = z.copy()
     rz = _dot(r, z)
     res = np.sqrt(_dot(r, r)) / b_norm
@@ -161,25 +160,25 @@ def filtered_pcg_arrays(row_ptr, col, values, b, x, kind, normal, constrained, t
             # confirm on the true residual before stopping
             _residual_with(row_ptr, col, values, extra, b, x, r)
             if constrained:
-                apply_filter(r, kind, normal)
+                apply_filter(r, kind)
             res = np.sqrt(_dot(r, r)) / b_norm
             if res <= tol:
                 break
-            _precondition(inv, r, kind, normal, constrained, z, mg)
+            _precondition(inv, r, kind, constrained, z, mg)
             copy_into(z, p)
             rz = _dot(r, z)
         block_multiply(row_ptr, col, values, p, q)
         if extra[3] > 0:
             pairs_offdiagonal_multiply(extra, p, q, 1.0)
         if constrained:
-            apply_filter(q, kind, normal)
+            apply_filter(q, kind)
         pq = _dot(p, q)
         if pq <= 0.0:
             break
         alpha = rz / pq
         _axpy(alpha, p, x)
         _axpy(-alpha, q, r)
-        _precondition(inv, r, kind, normal, constrained, z, mg)
+        _precondition(inv, r, kind, constrained, z, mg)
         rz_new = _dot(r, z)
         _xpby(z, rz_new / rz, p)
         rz = rz_new
@@ -188,6 +187,6 @@ def filtered_pcg_arrays(row_ptr, col, values, b, x, kind, normal, constrained, t
     if it == max_iter:
         _residual_with(row_ptr, col, values, extra, b, x, r)
         if constrained:
-            apply_filter(r, kind, normal)
+            apply_filter(r, kind)
         res = np.sqrt(_dot(r, r)) / b_norm
     return it, res

@@ -16,12 +16,13 @@ and sets v_{n+1} = (x − b)/ĥ, where W is the method's elastic energy
   v_{n−1} from the State. The first step has no past and invents none: it is a one-step
   second-order method, two stages of SDIRK2 (:meth:`NewtonIntegrator.first_step`).
 
-Damping (β = material.damping seconds): with ``material.damping_model: strain`` (the
-default) D = 0 and Φ is the dissipation potential of the change of stretch, shear and
-bending over the step (:mod:`clothtool.sim.energies.dissipation`), which no rigid motion
-changes; with ``frozen``, Φ = 0 and D = (β/ĥ) K is stiffness-proportional (Rayleigh)
+Damping (β = material.damping seconds): with ``material.damping_model: frozen`` (the
+default), Φ = 0 and D = (β/ĥ) K is stiffness-proportional (Rayleigh)
 damping with K the PSD-projected elastic Hessian at x_n (Baraff & Witkin 1998), so that the
-damping force is −βK v_{n+1} with the integrator's own velocity (per panel: Σ_e β_e K_e).
+damping force is −βK v_{n+1} with the integrator's own velocity (per panel: Σ_e β_e K_e);
+with ``strain``, D = 0 and Φ is the dissipation potential of the change of stretch, shear
+and bending over the step (:mod:`clothtool.sim.energies.dissipation`), which no rigid
+motion changes.
 Collider friction uses ĥ the same way (:mod:`clothtool.contact.projection`). Each piece of
 E is a term of :mod:`clothtool.sim.solve.potential`; the loop sums their list.
 
@@ -98,11 +99,11 @@ def eisenstat_walker(g_norm, g_prev, previous, floor):
     return min(EW_MAX, max(floor, eta))
 
 
-def _filtered(g, kind, normal, constrained):
+def _filtered(g, kind, constrained):
     """S g (the gradient on the unconstrained directions), a copy when it differs from g."""
     if constrained:
         g = g.copy()
-        apply_filter(g, kind, normal)
+        apply_filter(g, kind)
     return g
 
 
@@ -123,7 +124,6 @@ class NewtonIntegrator(Integrator):
         pattern = self.elastic.pattern
         self.matrix = BlockMatrix(pattern)
         self._grad = np.zeros((n, 3))
-        self._normal = np.zeros((n, 3))
         self._free_mass = float(np.sum(model.mass[model.free]))
         self.preconditioner = make_preconditioner(
             solver.preconditioner if self.multigrid else "jacobi", pattern, model.faces)
@@ -268,7 +268,7 @@ class NewtonIntegrator(Integrator):
         for term in terms:
             term.begin(stage)
         x, dx, h_eff = stage.start, stage.guess, stage.h_eff
-        constraints = ConstraintFilter(self.model.kind, self._normal, self.model.has_pins)
+        constraints = ConstraintFilter(self.model.kind, self.model.has_pins)
         tol, grad = solver.newton_tolerance if tol is None else tol, self._grad
         forcing, g_prev, step, cut = solver.tolerance, 0.0, 1.0, False
         line_search = solver.line_search or any(t.needs_line_search for t in terms)
@@ -277,7 +277,7 @@ class NewtonIntegrator(Integrator):
             if it >= solver.newton_iterations and self._behind(x) <= REACHED:
                 break
             energy = sum(term.assemble(x, grad, matrix) for term in terms)
-            free_grad = _filtered(grad, constraints.kind, self._normal, constraints.active)
+            free_grad = _filtered(grad, constraints.kind, constraints.active)
             g_norm = float(np.sqrt(np.sum(free_grad * free_grad)))
             if it > 0:
                 # PCG guess: what the line search left of the last step; after a step that CCD
