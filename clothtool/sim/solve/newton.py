@@ -150,7 +150,7 @@ class NewtonIntegrator(Integrator):
                                      max(model.tri_stretch[:, :2].max(), model.tri_shear.max()),
                                      solver.friction_velocity)
             contact.check_initial(model.mesh.positions)
-            terms.append(Contact(contact, model.mass))
+            terms.append(Contact(contact))
         return terms
 
     @property

@@ -243,8 +243,7 @@ class Contact(Term):
     needs_line_search = True
     starts_at_state = True
 
-    def __init__(self, contact, mass):
-        del mass  # the stick–slip test reads the contact's own masses of the free vertices
+    def __init__(self, contact):
         self.contact, self.h = contact, contact.h
 
     def begin(self, stage):
