@@ -3,7 +3,7 @@ runs of about one second each, against N/jobs × the time of one run.
 
     python -m benchmarks sweep
 
-Writes ``sweep.csv`` and ``sweep.md``. The scene: a 16×16 sheet on two corners, 60
+Writes ``sweep.csv``, ``sweep.md`` and the table of docs/sweep.md. The scene: a 16×16 sheet on two corners, 60
 frames at 30 fps (the default implicit solver); the runs differ in
 ``material.density`` only (0.200 … 0.210 kg/m²), so each costs about the same.
 
@@ -39,7 +39,7 @@ import time
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
-from benchmarks.common import clothtool_cmd, markdown_table, write_csv
+from benchmarks.common import clothtool_cmd, markdown_table, write_csv, write_doc_table
 
 BASE = """\
 mesh: {grid: {nx: 16, ny: 16, width: 0.5, height: 0.5, plane: xy}}
@@ -147,3 +147,4 @@ def run(out_dir):
         "end; first run = the slowest run (a worker's first: numba's kernels loaded); process "
         f"per run = one `clothtool simulate` per run, JOBS at a time. Warm run alone: {warm:.2f} s."
         "\n\n" + markdown_table(rows, columns))
+    write_doc_table("docs/sweep.md", "sweep", markdown_table(rows, columns), "sweep")
