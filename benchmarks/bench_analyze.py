@@ -139,8 +139,9 @@ def run(out_dir):
     columns = ["route", "seconds", "triangle_pairs_per_s", "vs_floor", "naive_over_this", "file_mb"]
     write_csv(out_dir / "analyze.csv", rows, columns)
     write_csv(out_dir / "analyze_accuracy.csv", errors, ["storage", "field", "max_abs_error"])
-    start = [{"what": "clothtool --help", "seconds": help_s},
-             {"what": "clothtool analyze sample_data/sheet (800 triangles, 29 pairs)", "seconds": tiny_s},
+    start = [{"what": "clothtool --help (s)", "seconds": help_s},
+             {"what": "clothtool analyze sample_data/sheet, 800 triangles × 29 pairs (s)",
+              "seconds": tiny_s},
              {"what": f"peak memory, {FRAMES} frames (MB)", "seconds": mem50},
              {"what": f"peak memory, {4 * FRAMES} frames (MB)", "seconds": mem200}]
     with open(out_dir / "analyze.md", "w") as fh:
