@@ -146,8 +146,10 @@ def run(out_dir):
     summary = []
     for method in dict.fromkeys(r["method"] for r in rows):
         mine = [r for r in rows if r["method"] == method]
-        summary.append({**mine[0], **{c: max(r[c] for r in mine) for c in columns[4:]}})
-    write_doc_table("README.md", "kernels", markdown_table(summary, columns[1:]), "kernels")
+        summary.append({"route": method, **mine[0],
+                        **{c: max(r[c] for r in mine) for c in columns[4:]}})
+    write_doc_table("README.md", "kernels", markdown_table(summary, ["route"] + columns[2:]),
+                    "kernels")
 
 
 if __name__ == "__main__":
