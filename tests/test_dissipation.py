@@ -313,11 +313,14 @@ def test_a_crumpled_sheet_relaxes_by_frame_8_at_one_step_per_frame(substeps):
 
 def test_strain_damping_is_the_implicit_methods_alone():
     base = {"mesh": {"grid": {"nx": 4, "ny": 4}}}
-    assert build_model(load_config(base)).strain_damping is None  # the default: frozen βK(x_n)
+    assert build_model(load_config(base)).strain_damping is not None  # the default
+    frozen = {**base, "material": {"damping_model": "frozen"}}
+    assert build_model(load_config(frozen)).strain_damping is None
+    undamped = {**base, "material": {"damping": 0.0}}
+    assert build_model(load_config(undamped)).strain_damping is None
     strain = {**base, "material": {"damping_model": "strain"}}
-    assert build_model(load_config(strain)).strain_damping is not None
     for method in ("explicit", "vbd", "mass-spring"):
-        # these methods damp with their own βK
+        # these methods damp with their own βK, the default strain damping notwithstanding
         assert build_model(load_config({**base, "solver": {"method": method}})).strain_damping is None
         with pytest.raises(InputError, match=rf"solver.method: '{method}' does not support "
                                              r"material.damping_model: strain"):

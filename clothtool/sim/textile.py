@@ -159,7 +159,11 @@ def specimen_model(uv, faces, pinned, material, folder, gravity=(0.0, 0.0, -STAN
     path = Path(folder) / "specimen.ply"
     positions = np.concatenate([uv, np.zeros((len(uv), 1))], axis=1)
     write_ply(path, positions, faces, vertex_properties={"s": uv[:, 0].copy(), "t": uv[:, 1].copy()})
-    config = load_config({"mesh": {"ply": str(path)}, "material": dict(material),
+    # the lab tests keep the damping they were calibrated with unless told otherwise: frozen
+    # βK brings the Cusick disc to rest in 3 s (with strain damping it rests with a drape
+    # coefficient 0.3–0.4 points lower: another of its nearby equilibria)
+    config = load_config({"mesh": {"ply": str(path)},
+                          "material": {"damping_model": "frozen", **dict(material)},
                           "scene": {"gravity": [float(g) for g in gravity],
                                     "pins": [int(v) for v in pinned]}})
     return build_model(config)

@@ -18,7 +18,7 @@ from clothtool.sim.model.contact_scene import build_contact_scene
 from clothtool.sim.linalg.filter import FREE, PINNED
 from clothtool.sim.linalg.blocks import BlockPattern
 from clothtool.sim.model.mesh import build_rest_mesh, flat_pattern, rest_edge_matrices
-from clothtool.sim.model.methods import barrier_contact
+from clothtool.sim.model.methods import barrier_contact, strain_damped
 from clothtool.sim.model.model import Model
 from clothtool.sim.model.motion import resolve_pin_entries
 from clothtool.sim.model.schema import suggest
@@ -268,7 +268,7 @@ class ModelBuilder:
         if len(self.stitches):
             terms.append(Stitch(self.stitches, self.stitch_stiffness.copy()))
         beta = self.tri_damping
-        strain = self.material.damping_model == "strain" and np.any(beta > 0.0)
+        strain = np.any(beta > 0.0) and strain_damped(config)
         bend_damping = plate_damping = None
         elements = [t.elements for t in terms]
         if strain and plate is not None:

@@ -262,14 +262,16 @@ class Material(Section):
                               "model: soft on a grid, stiff on other meshes: the "
                               "cantilever table) or `quadratic` (its linearisation; flat rest states "
                               "only); [Textile units](#textile-units-and-tests)")
-    damping_model: str = setting("frozen", choice(DAMPING_MODELS),
-                                 "`frozen`: D = βK(x_n)/ĥ, the stiffness at the start of the "
-                                 "step, which resists rigid rotation; `strain` (implicit "
-                                 "only): stretch, shear and bending damped by the "
+    damping_model: str = setting("strain", choice(DAMPING_MODELS),
+                                 "`strain`: stretch, shear and bending damped by the "
                                  "dissipation potential of their change over the step, "
-                                 "which no rigid motion feels (a sheet on a turntable "
-                                 "follows it, a crumpled start relaxes as at small steps; "
-                                 "more Newton steps than `frozen`; see Time stepping)")
+                                 "which no rigid motion feels (a sheet on a turning sphere "
+                                 "follows it, a crumpled start relaxes at one step per "
+                                 "frame, a hanging sheet swings; the other methods damp "
+                                 "with their own βK); `frozen`: D = βK(x_n)/ĥ, the "
+                                 "stiffness at the start of the step, which resists "
+                                 "rotation (the cloth creeps: fewer Newton steps; see Time "
+                                 "stepping)")
     bending_length: float | tuple | None = setting(None, pair_or_number(exclusive=True),
                                                    "m, instead of `bend`: the cantilever test's "
                                                    "bending length c (or `[warp, weft]`), "
