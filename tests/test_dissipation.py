@@ -192,6 +192,43 @@ def test_with_the_membrane_in_one_pass_it_is_the_sum_of_the_two():
     np.testing.assert_allclose(one.values, two.values, atol=1e-12 * np.abs(two.values).max())
 
 
+@settings(max_examples=60, deadline=None)
+@given(st.integers(0, 2**31 - 1), st.floats(10.0, 1e5), st.floats(10.0, 1e5),
+       st.floats(0.8, 1.2), st.floats(0.8, 1.2), st.floats(0.0, 1e4),
+       st.lists(st.floats(0.0, 1e3), min_size=3, max_size=3))
+def test_one_pass_is_the_membrane_and_the_dissipation_on_random_triangles(seed, k_u, k_v, b_u,
+                                                                         b_v, shear, coef):
+    """strain_assemble on one triangle: the membrane element's energy, gradient and projected
+    Hessian plus the dissipation element's (projected), whatever the material and shape."""
+    from clothtool.sim.energies.dissipation import strain_assemble
+    from clothtool.sim.energies.membrane import membrane_element
+    from clothtool.sim.linalg.blocks import BlockPattern
+
+    rng = np.random.default_rng(seed)
+    x, base = triangle(rng), np.append(rng.uniform(0.5, 1.5, 2), rng.uniform(-0.5, 0.5))
+    stretch, coef = np.array([[k_u, k_v, b_u, b_v]]), np.array([coef])
+    faces = np.array([[0, 1, 2]])
+    pattern = BlockPattern(3, faces)
+    matrix = BlockMatrix(pattern)
+    grad = np.zeros((3, 3))
+    w, phi = strain_assemble(x, faces, DR_INV[None], np.array([AREA]), stretch,
+                             np.array([shear]), coef, base[None], pattern.slots(faces), grad,
+                             matrix.values)
+    g1, h1, g2, h2 = np.empty(9), np.empty((9, 9)), np.empty(9), np.empty((9, 9))
+    w1 = membrane_element(x[0], x[1], x[2], DR_INV, AREA, stretch[0], shear, True, g1, h1,
+                          np.empty((6, 6)))
+    phi2 = dissipation_element(x[0], x[1], x[2], DR_INV, AREA, coef[0], base, False, g2, h2)
+    assert w == pytest.approx(w1, rel=1e-12, abs=1e-300)
+    assert phi == pytest.approx(phi2, rel=1e-12, abs=1e-300)
+    scale = max(np.abs(g1 + g2).max(), 1e-300)
+    np.testing.assert_allclose(grad.ravel(), g1 + g2, atol=1e-12 * scale)
+    dense = np.zeros((9, 9))
+    v = np.eye(9)
+    for i in range(9):
+        dense[:, i] = matrix.multiply(v[i].reshape(3, 3), np.empty((3, 3))).ravel()
+    np.testing.assert_allclose(dense, h1 + h2, atol=1e-12 * max(np.abs(h1 + h2).max(), 1e-300))
+
+
 def test_a_rigid_rotation_feels_no_damping_force():
     """A bent, sheared, stretched sheet turned rigidly (and moved) from its base: Φ and its
     force are zero, for every part with the hinge bending (the frozen βK form resists the
