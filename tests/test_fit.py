@@ -14,6 +14,8 @@ import pytest
 import yaml
 from click.testing import CliRunner
 from conftest import interrupt_when
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 import clothtool
 from clothtool.cli import main
@@ -201,6 +203,42 @@ def _fake_simulations(monkeypatch, residual, m):
 
     monkeypatch.setattr(api, "sweep", fake_sweep)
     monkeypatch.setattr(fit_runs.FitRuns, "_residual_of", fake_residual)
+
+
+# ------------------------------------------------------------------------------ surface distance
+
+
+def test_a_point_over_a_flat_sheet_is_offset_along_its_normal():
+    from clothtool.geometry import grid_triangles
+    from clothtool.sweeps.capture import surface_offsets
+
+    u, v = np.meshgrid(np.linspace(0, 1, 5), np.linspace(0, 1, 4))
+    x = np.stack([u.ravel(), v.ravel(), np.zeros(u.size)], axis=1)
+    points = np.array([[0.3, 0.7, 0.02], [0.5, 0.5, -0.3], [1.5, 0.5, 0.0], [-1.0, -1.0, 1.0]])
+    offsets = surface_offsets(points, x, grid_triangles(5, 4))
+    assert offsets == pytest.approx(np.array([[0, 0, 0.02], [0, 0, -0.3], [0.5, 0, 0],
+                                              [-1, -1, 1]]), abs=1e-12)
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.integers(0, 2**31 - 1), st.floats(0.01, 2.0))
+def test_surface_offsets_are_the_closest_of_all_triangles(seed, spread):
+    """Random points against a random bumpy sheet with uneven triangles: the candidates'
+    answer is brute force over every triangle."""
+    from clothtool.contact.distance import closest_offsets
+    from clothtool.geometry import grid_triangles
+    from clothtool.sweeps.capture import surface_offsets
+
+    rng = np.random.default_rng(seed)
+    u, v = np.meshgrid(np.sort(rng.uniform(0, 1, 7)), np.sort(rng.uniform(0, 1, 6)))
+    x = np.stack([u.ravel(), v.ravel(), 0.2 * rng.normal(size=u.size)], axis=1)
+    faces = grid_triangles(7, 6)
+    points = rng.normal(0.5, spread, (50, 3))
+    offsets = surface_offsets(points, x, faces)
+    every = np.tile(np.arange(len(faces)), (len(points), 1))
+    brute = np.empty((len(points), 3))
+    closest_offsets(np.concatenate([x, points]), faces, len(x), np.arange(len(points)), every, brute)
+    assert np.linalg.norm(offsets, axis=1) == pytest.approx(np.linalg.norm(brute, axis=1), abs=1e-12)
 
 
 # ------------------------------------------------------------------------------ bad input
