@@ -259,7 +259,7 @@ class ModelBuilder:
 
             uv = mesh.uv if mesh.uv is not None else _plane_pattern(mesh.rest3d)
             rigidity, anisotropy = self._plate_rigidity()
-            q = hessian_bending_matrix(uv, faces, self._per_vertex(rigidity), anisotropy)
+            q = hessian_bending_matrix(uv, faces, self._per_vertex(rigidity), anisotropy, pinned)
             plate = (q.indptr.astype(np.int64), q.indices.astype(np.int64), q.data)
         membrane_model = self._membrane_model()
         terms = _elastic_terms(faces, dr_inv, self.area, self.tri_stretch, self.tri_shear,
@@ -291,7 +291,7 @@ class ModelBuilder:
                 from clothtool.sim.energies.plate import on_pattern
 
                 damped = hessian_bending_matrix(uv, faces, self._per_vertex(rigidity * beta),
-                                                anisotropy)
+                                                anisotropy, pinned)
                 damped_plate = (*plate[:2], on_pattern(q, damped))
             damping_terms = _elastic_terms(faces, dr_inv, self.area, scaled,
                                            self.tri_shear * beta, bend_model, damped_plate, n,
