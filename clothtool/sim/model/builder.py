@@ -253,18 +253,21 @@ class ModelBuilder:
         if len(self.stitches) and not self.sewing.gravity:
             gravity = np.zeros(3)  # sewn without gravity (mesh.sewing.gravity)
         bend_model, hinge, hinge_faces, rest_angle, coef, weights = self._bending()
-        plate = None
+        plate = plate_matrix = None
         if bend_model == "hessian":
-            from clothtool.sim.energies.plate import hessian_bending_matrix
+            from clothtool.sim.energies.plate import SHARPEN, plate_matrices
 
             uv = mesh.uv if mesh.uv is not None else _plane_pattern(mesh.rest3d)
             rigidity, anisotropy = self._plate_rigidity()
-            q = hessian_bending_matrix(uv, faces, self._per_vertex(rigidity), anisotropy)
-            plate = (q.indptr.astype(np.int64), q.indices.astype(np.int64), q.data)
+            q, correction = plate_matrices(
+                uv, faces, self._per_vertex(rigidity), anisotropy, held=pinned,
+                sharpen=SHARPEN if self.material.plate_correction else 0.0)
+            plate = _csr(q if correction is None else q + correction)
+            plate_matrix = None if correction is None else _csr(q)
         membrane_model = self._membrane_model()
         terms = _elastic_terms(faces, dr_inv, self.area, self.tri_stretch, self.tri_shear,
                                bend_model, plate, n, hinge, rest_angle, coef, weights,
-                               membrane_model)
+                               membrane_model, plate_matrix)
         if len(self.stitches):
             terms.append(Stitch(self.stitches, self.stitch_stiffness.copy()))
         beta = self.tri_damping
@@ -290,9 +293,9 @@ class ModelBuilder:
             if plate is not None:  # k_v β_v per vertex, on the plate's own sparsity
                 from clothtool.sim.energies.plate import on_pattern
 
-                damped = hessian_bending_matrix(uv, faces, self._per_vertex(rigidity * beta),
-                                                anisotropy)
-                damped_plate = (*plate[:2], on_pattern(q, damped))
+                damped = plate_matrices(uv, faces, self._per_vertex(rigidity * beta),
+                                        anisotropy)[0]
+                damped_plate = (*_csr(q)[:2], on_pattern(q, damped))
             damping_terms = _elastic_terms(faces, dr_inv, self.area, scaled,
                                            self.tri_shear * beta, bend_model, damped_plate, n,
                                            hinge, rest_angle,
@@ -396,9 +399,16 @@ class ModelBuilder:
         return model, hinge, hinge_faces, rest_angle, coef, weights
 
 
+def _csr(q):
+    """(ptr, col, val) of a scipy CSR matrix, int64 indices."""
+    return q.indptr.astype(np.int64), q.indices.astype(np.int64), q.data
+
+
 def _elastic_terms(faces, dr_inv, area, stretch, shear, bend_model, plate, n, hinge, rest_angle,
-                   coef, weights, membrane_model="triangle"):
-    """The membrane and bending terms (none whose stiffness is zero)."""
+                   coef, weights, membrane_model="triangle", plate_matrix=None):
+    """The membrane and bending terms (none whose stiffness is zero); ``plate_matrix``: the
+    plate's Hessian in the solver's matrix when it is not ``plate`` itself (the corrected
+    plate: :class:`~clothtool.sim.energies.terms.PlateBending`)."""
     terms = []
     if membrane_model == "nodal":  # stretch on the vertices' smoothed metric, shear per triangle
         if np.any(stretch[:, :2] > 0.0):
@@ -410,7 +420,7 @@ def _elastic_terms(faces, dr_inv, area, stretch, shear, bend_model, plate, n, hi
     elif np.any(stretch[:, :2] > 0.0) or np.any(shear > 0.0):
         terms.append(Membrane(faces, dr_inv, area, stretch, shear))
     if bend_model == "hessian":
-        terms.append(PlateBending(plate, n))
+        terms.append(PlateBending(plate, n, plate_matrix))
     elif bend_model == "dihedral":
         terms.append(DihedralBending(hinge, rest_angle, coef))
     elif bend_model == "quadratic":
