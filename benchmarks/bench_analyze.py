@@ -7,7 +7,8 @@ On a 100k-triangle (224×224 vertices), 50-frame binary sequence, in one run:
 - the naive route: trimesh load, numpy tangent frames, np.linalg.svd, h5py (naive_route.py).
 Also: compression (gzip=4; ``--full``: gzip=1 too), cold start (``--help``, a tiny
 analyze), peak memory for 50 versus 200 frames, and the maximum error of the stored fields
-against a float64 SVD reference for float32 and float64 storage.
+against a float64 SVD reference for float32 and float64 storage. The summary is README.md's
+``analyze`` table.
 """
 
 import os
@@ -19,7 +20,7 @@ import h5py
 import numpy as np
 
 from benchmarks.common import (PYTHON, clothtool_cmd, full_or, markdown_table, median_time,
-                               peak_rss_mb, run_timed, write_csv)
+                               peak_rss_mb, run_timed, write_csv, write_doc_table)
 from benchmarks.naive_route import edge_matrices
 from clothtool.io.ply import write_ply
 
@@ -138,8 +139,9 @@ def run(out_dir):
     columns = ["route", "seconds", "triangle_pairs_per_s", "vs_floor", "naive_over_this", "file_mb"]
     write_csv(out_dir / "analyze.csv", rows, columns)
     write_csv(out_dir / "analyze_accuracy.csv", errors, ["storage", "field", "max_abs_error"])
-    start = [{"what": "clothtool --help", "seconds": help_s},
-             {"what": "clothtool analyze sample_data/sheet (800 triangles, 29 pairs)", "seconds": tiny_s},
+    start = [{"what": "clothtool --help (s)", "seconds": help_s},
+             {"what": "clothtool analyze sample_data/sheet, 800 triangles × 29 pairs (s)",
+              "seconds": tiny_s},
              {"what": f"peak memory, {FRAMES} frames (MB)", "seconds": mem50},
              {"what": f"peak memory, {4 * FRAMES} frames (MB)", "seconds": mem200}]
     with open(out_dir / "analyze.md", "w") as fh:
@@ -152,6 +154,14 @@ def run(out_dir):
         fh.write(markdown_table(errors, ["storage", "field", "max_abs_error"]))
         fh.write("\n### Start-up and memory (medians of 5 for times)\n\n")
         fh.write(markdown_table(start, ["what", "seconds"]).replace("| seconds |", "| value |"))
+    worst = {s: max(e["max_abs_error"] for e in errors if e["storage"] == s)
+             for s in ("float32", "float64")}
+    summary = start + [{"what": f"largest error of the stored fields, {s} storage",
+                        "seconds": e} for s, e in worst.items()]
+    write_doc_table("README.md", "analyze", markdown_table(rows, columns) + "\n"
+                    + markdown_table(summary, ["what", "seconds"]).replace("| seconds |",
+                                                                            "| value |"),
+                    "analyze")
     for result in [*work.glob("*.h5"), *work.glob("*.xdmf")]:  # gigabytes; the inputs stay for reruns
         result.unlink()
     print((out_dir / "analyze.md").read_text())

@@ -2,7 +2,7 @@
 
     python -m benchmarks fabrics
 
-Writes ``bench-results/fabrics.md``:
+Writes ``bench-results/fabrics.md`` and the presets' and denims' tables of docs/simulate.md:
 
 - every preset (``material.preset``, :mod:`clothtool.fabrics`): the bending length its
   own data predict along warp (u) and weft (v), c = (B/(ρg))^(1/3), against the simulated
@@ -16,7 +16,7 @@ Writes ``bench-results/fabrics.md``:
 
 import time
 
-from benchmarks.common import markdown_table
+from benchmarks.common import markdown_table, write_doc_table
 
 # Kumari & Khurana 2016, Table 5 ("Primary hand values"), fabrics A–F: EMT %, B gf·cm²/cm,
 # G gf/(cm·deg), W mg/cm² (as printed: 94–109 mg/cm², i.e. 0.94–1.09 kg/m²)
@@ -31,25 +31,61 @@ KUMARI_KHURANA = {
 
 
 def lab_rows(name, material):
-    """One row: predicted and simulated bending lengths (warp, weft) and drape coefficient."""
+    """One row: the resolved material, predicted and simulated bending lengths (warp, weft)
+    and the drape coefficient."""
     from clothtool.lab_units import to_lab
     from clothtool.sim.model.config import load_config
     from clothtool.sim.textile import CUSICK_DAMPING, cantilever_bending_length, cusick_drape
 
     resolved = load_config({"mesh": {"grid": {"nx": 2, "ny": 2}}, "material": material}).material
     predicted = to_lab(resolved)["bending length"]
-    row = {"fabric": name}
+    row = {"fabric": name, "material": resolved, "predicted": predicted, "errors": []}
     started = time.perf_counter()
     for i, direction in enumerate(("warp", "weft")):
         simulated = 100.0 * cantilever_bending_length(material, direction)
         row[f"c {direction} cm"] = f"{predicted[i]:.3f}"
         row[f"simulated {direction} cm"] = f"{simulated:.3f}"
-        row[f"{direction} error"] = f"{100 * (simulated / predicted[i] - 1):+.2f} %"
-    dc = cusick_drape({**material, "damping": CUSICK_DAMPING})[0]
-    row["drape coefficient"] = f"{100 * dc:.1f} %"
+        row["errors"].append(100 * (simulated / predicted[i] - 1))
+        row[f"{direction} error"] = f"{row['errors'][-1]:+.2f} %"
+    row["dc"] = cusick_drape({**material, "damping": CUSICK_DAMPING})[0]
+    row["drape coefficient"] = f"{100 * row['dc']:.1f} %"
     row["wall s"] = f"{time.perf_counter() - started:.0f}"
-    print("  ", row, flush=True)
+    print("  ", {k: v for k, v in row.items() if k not in ("material", "errors")}, flush=True)
     return row
+
+
+def pair(values, fmt):
+    return f"[{format(values[0], fmt)}, {format(values[1], fmt)}]"
+
+
+def preset_doc_row(row):
+    """A preset's row of docs/simulate.md: its use, its keys, the 45° rigidity ARCSim measured,
+    its bending lengths with the simulated cantilever's error, drape and dropped coupling."""
+    from clothtool import fabrics
+
+    name, m = row["fabric"], row["material"]
+    use, fibres = fabrics.ARCSIM[name][:2]
+    r = fabrics.coupling(name)
+    return {"preset": f"`{name}`", "use, fibres": f"{use}, {fibres}", "density kg/m²": m.density,
+            "stretch [u, v] N/m": pair(m.stretch, ".4g"), "shear N/m": f"{m.shear:.4g}",
+            "bend [B_u, B_v] (1e-6 N·m); B at 45°": pair([1e6 * b for b in m.bend], ".2f")
+            + f"; {1e6 * fabrics.rigidities(name)[1]:.2f}",
+            "c along u / v cm, simulated": " / ".join(f"{c:.3f}" for c in row["predicted"])
+            + ": " + " / ".join(f"{e:+.2f}" for e in row["errors"]) + " %",
+            "Cusick drape coefficient, simulated": row["drape coefficient"],
+            "coupling dropped": "not PD" if r is None else f"{100 * r:.2g} %"}
+
+
+def denim_doc_row(row, values):
+    """A denim's row of docs/simulate.md: the lab's values, the block they give, its bending
+    length with the simulated cantilever's error, and drape."""
+    m = row["material"]
+    return {"denim": row["fabric"].removeprefix("K&K "),
+            "EMT / B / G / W": " / ".join(f"{v:g}" for v in values),
+            "material block out": f"`{{density: {m.density:.4g}, stretch: {m.stretch:.4g}, "
+                                  f"shear: {m.shear:.4g}, bend: {m.bend:.4g}}}`",
+            "c cm; simulated": f"{row['predicted'][0]:.3f}; {row['errors'][0]:+.2f} %",
+            "Cusick, simulated": row["drape coefficient"]}
 
 
 def run(out_dir):
@@ -59,13 +95,21 @@ def run(out_dir):
     presets = [lab_rows(name, {"preset": name}) for name in PRESETS]
     denims = [lab_rows(f"K&K {name}", {"kes": {"EMT": emt, "B": b, "G": g, "W": w}})
               for name, (emt, b, g, w) in KUMARI_KHURANA.items()]
+    columns = ["fabric", "c warp cm", "simulated warp cm", "warp error", "c weft cm",
+               "simulated weft cm", "weft error", "drape coefficient", "wall s"]
     text = ("## Measured fabrics\n\n`python -m benchmarks fabrics`: bending length predicted, "
             "(B/(ρg))^(1/3), against the simulated cantilever's (grid strip, overhang 2c, 20 "
             "divisions, static equilibrium, read through the elastica); Cusick drape "
             "coefficient (30 cm disc, 18 cm pedestal, 10 mm grid, damping 0.05 s, 3 s at "
             "60 fps).\n\n### Presets (Wang et al. 2011 via ARCSim)\n\n"
-            + markdown_table(presets, list(presets[0]))
+            + markdown_table(presets, columns)
             + "\n### Kumari & Khurana 2016's denims (KES-F, Table 5; W as printed)\n\n"
-            + markdown_table(denims, list(denims[0])))
+            + markdown_table(denims, columns))
     (out_dir / "fabrics.md").write_text(text)
+    rows = [preset_doc_row(r) for r in presets]
+    write_doc_table("docs/simulate.md", "fabrics-presets", markdown_table(rows, list(rows[0])),
+                    "fabrics")
+    rows = [denim_doc_row(r, v) for r, v in zip(denims, KUMARI_KHURANA.values())]
+    write_doc_table("docs/simulate.md", "fabrics-denims", markdown_table(rows, list(rows[0])),
+                    "fabrics")
     print(f"  fabrics benchmark in {time.perf_counter() - started:.0f} s")

@@ -1,7 +1,8 @@
 """The 3D (Kabsch) variant (issue 3): throughput and accuracy, against a batched numpy SVD route.
 
     python -m benchmarks kabsch          # (or python -m benchmarks.bench_kabsch) writes
-                                         # bench-results/kabsch.csv and kabsch.md
+                                         # bench-results/kabsch.csv and kabsch.md, and the
+                                         # tables of docs/kabsch.md
 
 On a 224×224-vertex grid (99 458 triangles) deformed by a moving, stretching, bending wave, in
 one run and with the same one-ring table:
@@ -27,7 +28,7 @@ import numba
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from benchmarks.common import markdown_table, write_csv
+from benchmarks.common import markdown_table, write_csv, write_doc_table
 from clothtool.analysis.deformation2d import DEGENERATE_TOL
 from clothtool.analysis.kabsch import horn_matrix, vertex_rotations
 from clothtool.analysis.symeig import adjugate_eigenvector4, jacobi_eigvals_batch
@@ -293,6 +294,11 @@ def run(out_dir):
           markdown_table(eigen, eigen_columns)]
     (out_dir / "kabsch.md").write_text("".join(md))
     print("".join(md))
+    write_doc_table("docs/kabsch.md", "kabsch", md[1] + md[2], "kabsch")
+    write_doc_table("docs/kabsch.md", "kabsch-thin-rings", markdown_table(thin, thin_columns),
+                    "kabsch")
+    write_doc_table("docs/kabsch.md", "kabsch-eigen", markdown_table(eigen, eigen_columns),
+                    "kabsch")
 
 
 if __name__ == "__main__":

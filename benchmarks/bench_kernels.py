@@ -5,7 +5,8 @@ cores), numpy ``eigh`` of C (λ = √w, U = V·diag(λ)·Vᵀ, R = F·U⁻¹) an
 of F. Accuracy is measured against the same closed-form formulas evaluated in
 extended precision (np.longdouble, 64-bit mantissa), in three regimes: moderate
 deformation, near-isotropic (λ1 ≈ λ2) and strongly anisotropic (λ2/λ1 ≈ 1e-6), and
-for float32 and float64 storage of clothtool's results.
+for float32 and float64 storage of clothtool's results. The summary (throughput, and each
+route's worst error over the regimes) is README.md's ``kernels`` table.
 """
 
 import pathlib
@@ -13,7 +14,7 @@ import pathlib
 import numba
 import numpy as np
 
-from benchmarks.common import markdown_table, median_seconds, write_csv
+from benchmarks.common import markdown_table, median_seconds, write_csv, write_doc_table
 from clothtool.analysis.deformation2d import (KernelPlan, deformation_fields,
                                               reference_from_positions)
 
@@ -142,6 +143,13 @@ def run(out_dir):
                  "is divided by the triangle's λ1.\n\n")
         fh.write(markdown_table(rows, columns))
     print((out_dir / "kernels.md").read_text())
+    summary = []
+    for method in dict.fromkeys(r["method"] for r in rows):
+        mine = [r for r in rows if r["method"] == method]
+        summary.append({"route": method, **mine[0],
+                        **{c: max(r[c] for r in mine) for c in columns[4:]}})
+    write_doc_table("README.md", "kernels", markdown_table(summary, ["route"] + columns[2:]),
+                    "kernels")
 
 
 if __name__ == "__main__":

@@ -16,6 +16,7 @@ as binary little-endian float64 PLY and as OBJ (``v`` with %.9g, the same number
 c``); whole
 ``clothtool analyze`` commands (numba cache warm), medians of RUNS interleaved runs, and the
 largest difference between the two results' /face/stretch (0: the same numbers).
+Both tables are README.md's ``obj`` table.
 """
 
 import pathlib
@@ -26,7 +27,7 @@ import h5py
 import numpy as np
 
 from benchmarks.bench_analyze import make_sequence
-from benchmarks.common import clothtool_cmd, markdown_table, run_timed, write_csv
+from benchmarks.common import clothtool_cmd, markdown_table, run_timed, write_csv, write_doc_table
 
 REPEAT = 5
 SEQ_FRAMES = 20
@@ -131,6 +132,8 @@ def run(out_dir):
                  f"`clothtool analyze`, medians of {RUNS} interleaved runs)\n\n")
         fh.write(markdown_table(sequence, ["format", "seconds", "ms_per_frame", "vs_ply",
                                            "max_stretch_difference"]))
+    write_doc_table("README.md", "obj", markdown_table(rows, columns) + "\n" + markdown_table(
+        sequence, ["format", "seconds", "ms_per_frame", "vs_ply", "max_stretch_difference"]), "obj")
     for r in rows:
         print(f"{r['file']:34s} {r['reader']:30s} {r['ms_per_frame']:8.1f} ms "
               f"{r['MB_per_s']:7.1f} MB/s")

@@ -16,6 +16,9 @@ I/O floor.
   warm) against the I/O floor (tet_floor_io.py: read the vertex blocks, write the same
   datasets), medians of interleaved runs; peak memory for 50 and 200 frames (the same frames
   linked four times).
+
+The kernel, end-to-end and memory tables are README.md's ``tet`` table, the readers' its
+``tet-readers``.
 """
 
 import os
@@ -26,7 +29,7 @@ import numba
 import numpy as np
 
 from benchmarks.common import (PYTHON, clothtool_cmd, markdown_table, median_seconds, peak_rss_mb,
-                               run_timed, write_csv)
+                               run_timed, write_csv, write_doc_table)
 from clothtool.analysis.tet import (DEGENERATE_TOL, TET_FIELDS, KernelPlan, rest_from_positions,
                                     tet_fields)
 
@@ -303,6 +306,11 @@ def run(out_dir):
         fh.write(markdown_table(e2e, ecols))
         fh.write("\n### Peak memory (`--fields stretch,volume_ratio,flags`)\n\n")
         fh.write(markdown_table(memory, ["frames", "peak_mb"]))
+    write_doc_table("README.md", "tet", markdown_table(kernel, kcols) + "\n"
+                    + markdown_table(e2e, ecols) + "\n" + markdown_table(memory, ["frames", "peak_mb"]),
+                    "tet")
+    write_doc_table("README.md", "tet-readers", markdown_table(readers, ["format", "ms_per_frame",
+                                                                         "file_mb"]), "tet")
     for result in [*work.glob("*.h5"), *work.glob("*.xdmf")]:
         result.unlink()
     print((out_dir / "tet.md").read_text())

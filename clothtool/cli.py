@@ -5,6 +5,7 @@ Every command body imports its heavy modules (numba, h5py) lazily so that
 code: 0 done, 2 bad input or usage, 3 numerical failure, 130 interrupted.
 """
 
+import contextlib
 import sys
 import traceback
 
@@ -112,6 +113,53 @@ def _progress_enabled(quiet):
     return not quiet and sys.stderr.isatty()
 
 
+QUIET = click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary.")
+SET = click.option("--set", "settings", multiple=True, metavar="KEY=VALUE",
+                   help="Override one config key, e.g. --set material.stretch=1e5 (repeatable; "
+                        "in every simulation of a command that runs several).")
+
+
+def simulation_options(folder, *, required=True, scope="", rounds=False):
+    """The options of every command that runs simulations (sweep, fabric, fit), defined once:
+    ``-o DIR`` (``folder``: what the folder holds; ``required``), ``--set``, ``-j`` and
+    ``--slurm`` (``scope``: the option they serve, e.g. ``"--fit-drape: "``; ``rounds``: the
+    command runs rounds of simulations, each waiting for the one before)."""
+    options = (
+        click.option("-o", "--output", required=required, default=None,
+                     type=click.Path(file_okay=False), help=folder),
+        SET,
+        click.option("-j", "--jobs", default=1, show_default=True, type=int,
+                     help=f"{scope}Simulations at a time on this machine (worker processes)."),
+        click.option("--slurm", is_flag=True,
+                     help=f"{scope}Write a Slurm job-array script instead of running; print its "
+                          "sbatch line" + ("; rerun the command once the array has ended, to go "
+                                           "on to the next round." if rounds else ".")),
+    )
+
+    def apply(command):
+        for option in reversed(options):
+            command = option(command)
+        return command
+    return apply
+
+
+@contextlib.contextmanager
+def runs_bar(quiet, slurm, desc):
+    """A progress bar on stderr counting simulations (None when quiet, on Slurm or not a
+    terminal); tqdm's monitor thread is off, since the local pool forks its workers."""
+    if not _progress_enabled(quiet) or slurm:
+        yield None
+        return
+    from tqdm import tqdm
+
+    tqdm.monitor_interval = 0
+    bar = tqdm(desc=desc, unit="run", file=sys.stderr)
+    try:
+        yield bar
+    finally:
+        bar.close()
+
+
 def _analyze_epilog():
     from clothtool.fields import help_table
 
@@ -170,7 +218,7 @@ Open out.xdmf (written beside out.h5) in ParaView for the deformed mesh over tim
 @click.option("--kabsch", is_flag=True,
               help="Add the 3D variant: Kabsch rotation of each vertex's one-ring, the 3×3 face "
                    "gradient with its polar split, the dihedral-angle change per edge.")
-@click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary.")
+@QUIET
 def analyze(inputs, output, reference, uv_scale, fields, dtype, compression, vertex_average,
             pair_slice, kabsch, quiet):
     """Per-triangle deformation of a PLY or OBJ sequence (per tetrahedron of a
@@ -360,7 +408,7 @@ from the run's stats.csv (else frame number / --fps). Needs matplotlib.
 @click.option("--dpi", default=100, show_default=True, type=int,
               help="Pixels per inch of the 6.4 × 4.8 inch pictures.")
 @click.option("--movie/--no-movie", default=True, show_default=True, help="Also write the movie.")
-@click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary.")
+@QUIET
 def render(frames, output, config, fps, dpi, movie, quiet):
     """Pictures of a simulated sequence: each frame's cloth (and the run's colliders)
     in 3D as a PNG, and a short movie of them.
@@ -416,20 +464,14 @@ Examples:
 @click.option("--kes", multiple=True, metavar="NAME=VALUE",
               help="A KES-F value: B (gf·cm²/cm), G (gf/cm·deg), EMT (%), W (mg/cm²); "
                    "B and EMT may be WARP,WEFT.")
-@click.option("--set", "settings", multiple=True, metavar="KEY=VALUE",
-              help="Change a config key (repeatable).")
 @click.option("--drape", is_flag=True,
               help="Also simulate its Cusick drape test (about 15-60 s) and print the drape "
                    "coefficient.")
 @click.option("--fit-drape", "target", type=float, default=None, metavar="PERCENT",
               help="Fit the bending to this measured Cusick drape coefficient (sweeps of the "
                    "drape test into -o DIR; at most 10 simulations).")
-@click.option("-o", "--output", type=click.Path(file_okay=False), default=None,
-              help="The folder of --fit-drape's sweeps.")
-@click.option("-j", "--jobs", default=1, show_default=True, type=int,
-              help="--fit-drape: simulations at a time on this machine.")
-@click.option("--slurm", is_flag=True,
-              help="--fit-drape: write each round's Slurm array instead; rerun once it ended.")
+@simulation_options("The folder of --fit-drape's sweeps.", required=False, scope="--fit-drape: ",
+                    rounds=True)
 @click.option("--list", "show_list", is_flag=True, help="List the measured fabrics and exit.")
 def fabric(config, preset, kes, settings, drape, target, output, jobs, slurm, show_list):
     """Print a material block (SI) and what it is in a lab's units (KES-F, ASTM D1388)."""
@@ -470,9 +512,8 @@ Config keys and units: see the README, section Simulation.
 @click.argument("config", type=click.Path(dir_okay=False))
 @click.option("-o", "--output", type=click.Path(),
               help="Output folder, overriding output.dir (relative to the current folder).")
-@click.option("--set", "settings", multiple=True, metavar="KEY=VALUE",
-              help="Override one config key, e.g. --set material.stretch=1e5 (repeatable).")
-@click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary.")
+@SET
+@QUIET
 def simulate(config, output, settings, quiet):
     """Simulate cloth with an implicit Baraff-Witkin solver; write PLY frames.
 
@@ -511,8 +552,7 @@ Rerun the same command to resume: done runs are skipped (failed ones too, unless
 
 @main.command(epilog=SWEEP_EPILOG)
 @click.argument("base", type=click.Path(dir_okay=False))
-@click.option("-o", "--output", required=True, type=click.Path(file_okay=False),
-              help="Sweep folder: run_NNNN/ per run, manifest.csv (a rerun resumes it).")
+@simulation_options("Sweep folder: run_NNNN/ per run, manifest.csv (a rerun resumes it).")
 @click.option("--grid", multiple=True, metavar="KEY=V1,V2,...",
               help="Values of one config key; the runs are the product of all --grid lists.")
 @click.option("--zip", "zipped", multiple=True, metavar="KEY=V1,V2,...",
@@ -522,12 +562,6 @@ Rerun the same command to resume: done runs are skipped (failed ones too, unless
 @click.option("--range", "ranges", multiple=True, metavar="KEY=LO:HI[:log|:int]",
               help="A range a --random sweep draws from: uniform, log-uniform or integer.")
 @click.option("--seed", type=int, default=None, help="Seed of a --random sweep.")
-@click.option("--set", "settings", multiple=True, metavar="KEY=VALUE",
-              help="Override one config key in every run (as simulate --set).")
-@click.option("-j", "--jobs", default=1, show_default=True, type=int,
-              help="Runs at a time on this machine (worker processes).")
-@click.option("--slurm", is_flag=True,
-              help="Write a Slurm job-array script instead of running; print its sbatch line.")
 @click.option("--per-task", default=1, show_default=True, type=int,
               help="Runs per Slurm array task.")
 @click.option("--analyze", is_flag=True,
@@ -535,7 +569,7 @@ Rerun the same command to resume: done runs are skipped (failed ones too, unless
 @click.option("--fields", default="stretch,area_ratio,flags", show_default=True, metavar="NAMES",
               help="Fields the --analyze results store (as analyze --fields).")
 @click.option("--retry-failed", is_flag=True, help="Rerun the runs that failed before.")
-@click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary.")
+@QUIET
 def sweep(base, output, grid, zipped, random, ranges, seed, settings, jobs, slurm, per_task,
           analyze, fields, retry_failed, quiet):
     """Run a simulation for each combination of config values (a parameter sweep).
@@ -546,20 +580,11 @@ def sweep(base, output, grid, zipped, random, ranges, seed, settings, jobs, slur
     """
     from clothtool.sweeps.api import sweep as run_sweep
 
-    bar = None
-    if _progress_enabled(quiet) and not slurm:
-        from tqdm import tqdm
-
-        tqdm.monitor_interval = 0  # no monitor thread: the pool forks its workers
-        bar = tqdm(desc="sweep", unit="run", file=sys.stderr)
-    try:
+    with runs_bar(quiet, slurm, "sweep") as bar:
         result = run_sweep(base, output, grid=list(grid), zip=list(zipped), random=random,
                            ranges=list(ranges), seed=seed, settings=list(settings), jobs=jobs,
                            slurm=slurm, per_task=per_task, analyze=analyze, fields=fields,
                            retry_failed=retry_failed, on_done=bar and (lambda r, s: bar.update()))
-    finally:
-        if bar is not None:
-            bar.close()
     if not quiet or slurm:
         click.echo(result.describe())
     if result.failed and not slurm:

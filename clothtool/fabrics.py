@@ -26,42 +26,27 @@ The conversion follows ARCSim's code (Narain et al. 2012; ``conf.cpp``, ``dde.cp
   (the plate's twist takes √(B_u B_v); ARCSim's 45° row is the check, see the docs).
 """
 
+import csv
+from pathlib import Path
+
 from clothtool.errors import InputError
 
-# name: (use, fibres, density kg/m², stretching row 0 (C11, C12, C22, C33), bending column 0
-# (edges along u, at 45°, along v)), the values of ARCSim's materials/NAME.json
-ARCSIM = {
-    "11oz-black-denim": ("jeans", "99% cotton 1% spandex", 0.324,
-                         (205.352005, 10.234077, 1013.88629, 53.387184),
-                         (64.196457e-6, 73.384567e-6, 96.951576e-6)),
-    "camel-ponte-roma": ("jacket", "60% polyester 40% rayon", 0.284,
-                         (31.146198, -12.802702, 44.028667, 31.896357),
-                         (36.348366e-6, 33.013252e-6, 37.157593e-6)),
-    "gray-interlock": ("t-shirt", "60% cotton 40% polyester", 0.187,
-                       (16.593832, -14.69599, 34.477123, 36.860302),
-                       (23.191698e-6, 24.749964e-6, 14.267624e-6)),
-    "ivory-rib-knit": ("underwear", "95% cotton 5% spandex", 0.276,
-                       (42.871021, -0.234556, 65.166023, 83.175644),
-                       (46.237591e-6, 30.015930e-6, 32.243889e-6)),
-    "navy-sparkle-sweat": ("sweater", "96% polyester 4% spandex", 0.224,
-                           (12.486332, -19.875324, 3.272434, 17.616289),
-                           (59.469658e-6, 40.072277e-6, 45.625023e-6)),
-    "pink-ribbon-brown": ("blanket", "100% polyester", 0.228,
-                          (151.503906, 106.02816, 244.830673, 30.250183),
-                          (117.070122e-6, 87.509773e-6, 59.774277e-6)),
-    "royal-target": ("pants", "65% cotton 35% polyester", 0.22,
-                     (2016.55456, 9.170511, 2034.97644, 104.759674),
-                     (125.409805e-6, 107.997696e-6, 125.409805e-6)),
-    "tango-red-jet-set": ("jacket", "100% polyester", 0.113,
-                          (43.067627, 54.373299, 171.424835, 14.3147),
-                          (14.293814e-6, 21.9517e-6, 20.345654e-6)),
-    "white-dots-on-blk": ("tablecloth", "100% polyester", 0.128,
-                          (2002.08618, 0.345588, 2027.48559, 19.189022),
-                          (51.713814e-6, 40.65947e-6, 31.282822e-6)),
-    "white-swim-solid": ("swimsuit", "87% nylon 13% spandex", 0.204,
-                         (47.971176, 6.834521, 104.615456, 60.773663),
-                         (60.237942e-6, 58.803211e-6, 51.018833e-6)),
-}
+TABLE = Path(__file__).with_name("fabrics.csv")
+
+
+def read_table(path=TABLE):
+    """{name: (use, fibres, density kg/m², stretching row 0 (C11, C12, C22, C33), bending
+    column 0 (edges along u, at 45°, along v))} from the CSV of ARCSim's materials/NAME.json
+    values (``#`` lines are its notes)."""
+    with open(path, newline="", encoding="utf-8") as fh:
+        rows = csv.DictReader(line for line in fh if not line.startswith("#"))
+        return {r["name"]: (r["use"], r["fibres"], float(r["density"]),
+                            tuple(float(r[c]) for c in ("C11", "C12", "C22", "C33")),
+                            tuple(float(r[c]) for c in ("ke_u_edges", "ke_45", "ke_v_edges")))
+                for r in rows}
+
+
+ARCSIM = read_table()
 PRESETS = tuple(ARCSIM)
 
 

@@ -4,6 +4,7 @@ motions, and the crumpled start it was built for."""
 
 import numpy as np
 import pytest
+import scipy.sparse as sps
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -16,6 +17,7 @@ from clothtool.geometry import dihedral_angles
 from clothtool.sim.energies.bending import dihedral_element, dihedral_total_energy
 from clothtool.sim.linalg.blocks import BlockMatrix
 from clothtool.sim.energies.membrane import max_principal_stretch
+from clothtool.sim.energies.terms import Membrane
 from clothtool.sim.solvers.compare import run_in_memory
 
 DR_INV = np.linalg.inv(np.array([[0.1, 0.03], [0.0, 0.08]]))  # a rest triangle, uv edges
@@ -117,7 +119,7 @@ def test_the_mesh_kernels_sum_the_elements_and_hinges():
     θ̄ → Θ): energy, gradient against central differences, projected Hessian blocks."""
     cfg = load_config({"mesh": {"grid": {"nx": 5, "ny": 4, "plane": "xz"}},
                        "material": {"damping_model": "strain", "damping": 0.02, "stretch": [800.0, 500.0], "shear": 60.0,
-                                    "bend": 1e-3}})
+                                    "bend": 1e-3, "bend_model": "dihedral"}})
     model = build_model(cfg)
     rng = np.random.default_rng(5)
     base = model.mesh.positions + rng.normal(0, 0.02, model.mesh.positions.shape)
@@ -159,21 +161,50 @@ def test_the_mesh_kernels_sum_the_elements_and_hinges():
                                atol=1e-9 * np.abs(dense).max())
 
 
+def rigid_turn(angle=0.7, axis=(0.3, 1.0, -0.2)):
+    axis = np.asarray(axis) / np.linalg.norm(axis)
+    k = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
+    return np.eye(3) + np.sin(angle) * k + (1 - np.cos(angle)) * k @ k
+
+
+def test_with_the_membrane_in_one_pass_it_is_the_sum_of_the_two():
+    """StrainDissipation(model, membrane) is W_membrane + Φ: energy, gradient and matrix
+    blocks those of the membrane term and the dissipation assembled apart (rounding)."""
+    cfg = load_config({"mesh": {"grid": {"nx": 7, "ny": 5, "plane": "xz"}},
+                       "material": {"damping_model": "strain", "damping": 0.03,
+                                    "stretch": [900.0, 400.0], "rest_stretch": [1.05, 0.97],
+                                    "shear": 70.0, "bend": 1e-3}})
+    model = build_model(cfg)
+    membrane = next(t for t in model.terms if isinstance(t, Membrane))
+    rng = np.random.default_rng(6)
+    base = model.mesh.positions + rng.normal(0, 0.02, model.mesh.positions.shape)
+    x = base + rng.normal(0, 0.02, base.shape)
+    fused, apart = StrainDissipation(model, membrane), StrainDissipation(model)
+    for term in (fused, apart):
+        term.begin(((4 / 3, base), (-1 / 3, model.mesh.positions)), 0.02)
+    one, two = BlockMatrix(model.pattern), BlockMatrix(model.pattern)
+    g1, g2 = np.zeros_like(x), np.zeros_like(x)
+    e1 = fused.assemble(x, g1, one.values)
+    e2 = apart.assemble(x, g2, two.values) + membrane.assemble(x, g2, two.values)
+    assert e1 == pytest.approx(e2, rel=1e-12)
+    assert fused.energy(x) == pytest.approx(e2, rel=1e-12)
+    np.testing.assert_allclose(g1, g2, atol=1e-12 * np.abs(g2).max())
+    np.testing.assert_allclose(one.values, two.values, atol=1e-12 * np.abs(two.values).max())
+
+
 def test_a_rigid_rotation_feels_no_damping_force():
     """A bent, sheared, stretched sheet turned rigidly (and moved) from its base: Φ and its
-    force are zero, for every part (the frozen βK form resists the same motion)."""
+    force are zero, for every part with the hinge bending (the frozen βK form resists the
+    same motion)."""
     cfg = load_config({"mesh": {"grid": {"nx": 6, "ny": 6, "plane": "xz"}},
                        "material": {"damping_model": "strain", "damping": 0.05, "shear": 80.0,
-                                    "bend": 1e-3}})
+                                    "bend": 1e-3, "bend_model": "dihedral"}})
     model = build_model(cfg)
     rng = np.random.default_rng(11)
     base = model.mesh.positions + rng.normal(0, 0.03, model.mesh.positions.shape)
     term = StrainDissipation(model)
     term.begin(((1.0, base),), 1 / 30)
-    axis = np.array([0.3, 1.0, -0.2]) / np.linalg.norm([0.3, 1.0, -0.2])
-    k = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
-    turn = np.eye(3) + np.sin(0.7) * k + (1 - np.cos(0.7)) * k @ k  # 0.7 rad
-    x = base @ turn.T + [0.2, -0.5, 1.0]
+    x = base @ rigid_turn().T + [0.2, -0.5, 1.0]
     grad = np.zeros_like(x)
     matrix = BlockMatrix(model.pattern)
     assert abs(term.assemble(x, grad, matrix.values)) < 1e-18
@@ -185,11 +216,68 @@ def test_a_rigid_rotation_feels_no_damping_force():
     assert np.abs(frozen.multiply(x - base, np.empty_like(x))).max() > 1e-3
 
 
+def test_the_plates_damping_is_its_own_matrix_and_turns_with_its_force():
+    """With the plate (``bend_model: hessian``), bending's Φ is 1/(2ĥ) Σ_c (x − b)_cᵀ β k_b Q
+    (x − b)_c on the plate's own blocks (no hinges in the matrix). Its strain, the Hessian of
+    x over the pattern, is linear in x: a rigid turn R of the base feels
+    (β/ĥ) k_b Q b (Rᵀ − I), the plate's force at b turned less itself, which is zero for a
+    flat sheet and has no part of second order in the turn (frozen βK has one: the membrane's
+    stretch along the old fibres)."""
+    cfg = load_config({"mesh": {"grid": {"nx": 6, "ny": 6, "plane": "xz"}},
+                       "material": {"damping_model": "strain", "damping": 0.05, "shear": 80.0,
+                                    "bend": 1e-3}})
+    model = build_model(cfg)
+    assert model.bend_damping is None and model.plate_damping is not None
+    frozen = build_model(load_config({"mesh": {"grid": {"nx": 6, "ny": 6, "plane": "xz"}},
+                                      "material": {"damping_model": "frozen", "bend": 1e-3}}))
+    assert len(model.pattern.col) == len(frozen.pattern.col)
+    ptr, col, val = model.plate_damping
+    np.testing.assert_allclose(val, 0.05 * model.plate[2])
+    q = sps.csr_matrix((val, col, ptr))
+    rng = np.random.default_rng(13)
+    turn, move = rigid_turn(), np.array([0.2, -0.5, 1.0])
+    for base, bent in ((model.mesh.positions, False),
+                       (model.mesh.positions + rng.normal(0, 0.03, model.mesh.positions.shape), True)):
+        term = StrainDissipation(model)
+        term.begin(((1.0, base),), 1 / 30)
+        x = base @ turn.T + move
+        grad = np.zeros_like(x)
+        total = term.assemble(x, grad, BlockMatrix(model.pattern).values)
+        assert total == pytest.approx(term.energy(x), rel=1e-12)
+        expected = 30 * (q @ base) @ (turn.T - np.eye(3))
+        # Q's rows sum to zero within its pruning (1e-10 of an entry): the translation
+        scale = 30 * np.abs(val).max() * np.abs(x).max()
+        np.testing.assert_allclose(grad, expected, atol=1e-9 * scale)
+        assert (np.abs(grad).max() > 1e-3 * scale) == bent
+    # the plate's Φ against central differences, its Hessian blocks against Q/ĥ
+    x = model.mesh.positions + rng.normal(0, 0.03, model.mesh.positions.shape)
+    term = StrainDissipation(model)
+    term.begin(((4 / 3, base), (-1 / 3, model.mesh.positions)), 0.02)
+    np.testing.assert_allclose(term.plate_base, 4 / 3 * base - model.mesh.positions / 3)
+    grad = np.zeros_like(x)
+    matrix = BlockMatrix(model.pattern)
+    term.assemble(x, grad, matrix.values)
+    fd = np.empty(x.size)
+    for i in range(x.size):
+        d = np.zeros(x.size)
+        d[i] = 1e-7
+        fd[i] = (term.energy(x + d.reshape(x.shape)) - term.energy(x - d.reshape(x.shape))) / 2e-7
+    np.testing.assert_allclose(grad.ravel(), fd, atol=1e-6 * np.abs(fd).max())
+    v = rng.normal(size=x.shape)
+    triangles = BlockMatrix(model.pattern)
+    from clothtool.sim.energies.dissipation import strain_assemble
+    strain_assemble(x, model.faces, model.dr_inv, model.area, np.zeros((0, 4)), np.zeros(0),
+                    term.coef, term.base, model.tri_slots, np.zeros_like(x), triangles.values)
+    np.testing.assert_allclose(matrix.multiply(v, np.empty_like(v)) - triangles.multiply(v, np.empty_like(v)),
+                               (q @ v) / 0.02, atol=1e-9 * np.abs(q @ v).max() / 0.02)
+
+
 def test_bdf2_and_the_second_stage_measure_rates_from_a_combination_of_strains():
     """The base strains are Σ w_i m(x_i) over the past (BDF2: 4/3 and −1/3), not the
     strains of the combined positions."""
     cfg = load_config({"mesh": {"grid": {"nx": 4, "ny": 4, "plane": "xz"}},
-                       "material": {"damping_model": "strain", "damping": 0.05, "bend": 1e-3}})
+                       "material": {"damping_model": "strain", "damping": 0.05, "bend": 1e-3,
+                                    "bend_model": "dihedral"}})
     model = build_model(cfg)
     rng = np.random.default_rng(12)
     a = model.mesh.positions + rng.normal(0, 0.03, model.mesh.positions.shape)

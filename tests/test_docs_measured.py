@@ -1,11 +1,14 @@
-"""The docs' measured tables are the benchmarks': each stands between ``<!-- begin NAME -->``
-and ``<!-- end NAME -->``, written by the benchmark its last line names (benchmarks/common.py:
-write_doc_table) with the commit and date it was measured on; a table that names a scene the
-benchmark no longer runs, a method that is not registered or a config key that no longer
-exists fails here."""
+"""The docs' measured figures are the benchmarks': each stands in a table between
+``<!-- begin NAME -->`` and ``<!-- end NAME -->``, written by the benchmark its last line names
+(benchmarks/common.py: write_doc_table) with the commit and date it was measured on; a table
+that names a scene the benchmark no longer runs, a method that is not registered or a config
+key that no longer exists fails here, and so does a figure typed by hand anywhere else in
+README.md or docs/ (:func:`hand_typed`)."""
 
 import importlib
+import importlib.util
 import re
+import subprocess
 from pathlib import Path
 
 import pytest
@@ -16,7 +19,7 @@ from clothtool.sim.model.config import (BEND_MODELS, INTEGRATORS, MEMBRANE_MODEL
 from clothtool.sim.model.schema import key_rows
 
 ROOT = Path(__file__).resolve().parents[1]
-DOCS = sorted((ROOT / "docs").glob("*.md")) + [ROOT / "README.md"]
+DOCS = sorted((ROOT / "docs").glob("**/*.md")) + [ROOT / "README.md"]
 BLOCK = re.compile(r"<!-- begin ([\w-]+) -->\n(.*?)<!-- end \1 -->", re.S)
 LINE = re.compile(r"^measured on ([0-9a-f]{7,40}\+?|unknown) (\d{4}-\d\d-\d\d) \(load [\d.]+ on "
                   r"\d+ cores\), `python -m benchmarks(?: --full)? (\w+)`$", re.M)
@@ -124,3 +127,188 @@ def test_write_doc_table_replaces_only_its_block(tmp_path):
     assert LINE.search(text).group(3) == "methods"
     with pytest.raises(ValueError, match="no single <!-- begin u --> … <!-- end u --> block"):
         write_doc_table(str(doc), "u", "| a |", "methods")
+
+
+# ---------------------------------------------------------------------------- hand-typed figures
+#
+# A measured figure is a number in a unit of the machine's work (a time, a rate, a size, a
+# ratio of times) or an error against a reference, in a sentence about speed, cost, memory or
+# accuracy. Outside the measured blocks there are none: a doc says what the benchmark shows in
+# words and points to its table. Bounds (goals, limits, tolerances: ≤ 900 s, within 2 %,
+# h = 1 s) are not figures, nor are a scene's inputs in a sentence about something else.
+
+SUP = "⁻⁰¹²³⁴⁵⁶⁷⁸⁹"
+NUMBER = (r"(?<![\w.·/^-])\d+(?:[.,]\d+)?(?:\s?[–-]\s?\d+(?:[.,]\d+)?)?"
+          rf"(?:\s?[·×]\s?10[{SUP}]+|e[-+]?\d+)?")
+# a figure of the machine's wherever it stands: short times, sizes, rates per second (but a
+# speed in m/s, rad/s …), CPU-seconds
+STRONG = (r"\s?(?:ns|µs|us|ms|milliseconds?)(?![\w])|\s?[kMGT]B(?:/s)?(?![\w])|\s?[KMG]iB(?![\w])"
+          r"|\s?bytes\b|\s?(?:[kMG]\s)?(?!(?:m|mm|cm|rad|N|kg|J|W|deg)/s)[A-Za-z][\w-]*/s(?![\w/²])"
+          r"|\s?CPU[- ]s(?![\w])")
+# a figure of the machine's in a sentence about speed, cost or memory: seconds, minutes, per
+# cent, a ratio (1.5×, not the 16 × 5 of a size), millions of something
+WEAK = (r"\s?(?:s|seconds?|min|minutes?|%|×(?!\s?\d)|x(?=\s)(?!\s?\d)|[kM](?=\s[a-z]))"
+        r"(?![\w/])")
+FIGURE = re.compile(rf"({NUMBER})(?:({STRONG})|({WEAK}))")
+# an error against a reference (7e-16, 5·10⁻¹⁴), not a quantity in a physical unit
+SCI = re.compile(rf"(?<![\w.=])\d(?:\.\d+)?(?:e-\d+|\s?·\s?10⁻[{SUP}]+)(?![\d{SUP}])"
+                 r"(?!\s?(?:N|m|kg|J|Pa|s|rad)\b|\s?N·m|\s?N/m)")
+COST = re.compile(r"\b(?:cpu|wall[- ](?:time|clock)|faster|slower|speed\w*|throughput|took|takes?|"
+                  r"costs?|load average|threads?|cores?|memory|peak|per second|run ?time|overhead|"
+                  r"start-?up|times?)\b", re.I)
+ACCURACY = re.compile(r"\b(?:errors?|agree\w*|accura\w*|precision|residual)\b", re.I)
+HEADING = re.compile(r"\b(?:performance|speed|timings?)\b", re.I)
+# what introduces a table as measured
+CALLED_MEASURED = re.compile(r"python -m benchmarks|\bmeasured\b", re.I)
+BOUND = re.compile(r"(?:[≤≥<>=±]|\b(?:under|below|above|over|less than|more than))\s*~?\s*$|"
+                   r"\b(?:at (?:most|least)|within|goal|capped at|up to)\b[^,;:()]*$", re.I)
+CODE = re.compile(r"`[^`]*`")
+NUMERIC_CELL = re.compile(r"\s*[~≈+−-]?\d[\d.,]*(?:e[-+]?\d+)?\s?\S{0,12}\s*")
+# a column of measured figures by its header
+MEASURED_COLUMN = re.compile(r"\b(?:s|ms|µs|seconds?|min|[kMG]B|cpu|wall|speed\w*|time|vs|ratio|"
+                             r"errors?)\b|/s\b|×", re.I)
+
+
+def cells_of(row):
+    return row.strip().strip("|").split("|")
+
+
+def sentences(paragraph):
+    """The sentences of a paragraph, each list item apart."""
+    found = []
+    for item in re.split(r"\n\s*(?=[-*] |\d+\. )", paragraph):
+        flat = " ".join(line.strip() for line in item.splitlines())
+        found += re.split(r"(?<=[.;!?])\s+(?=[A-Z(`*\[])", flat)
+    return found
+
+
+def figures(text, context, heading):
+    """The measured figures in ``text`` (a sentence or a table row) given its ``context`` (the
+    sentence, or the row with its table's header) and whether its section is about speed."""
+    context = CODE.sub(" ", context)
+    cost, accuracy = heading or COST.search(context), ACCURACY.search(context)
+    found = [m.group(0).strip() for m in FIGURE.finditer(text)
+             if (m.group(2) or cost) and not BOUND.search(text[:m.start()])]
+    if accuracy:
+        found += [m.group(0) for m in SCI.finditer(text) if not BOUND.search(text[:m.start()])]
+    return found
+
+
+def reference_tables():
+    """The names of the docs' reference tables, the code's own (scripts/reference_tables.py
+    writes them, tests/test_reference_tables.py holds them to it)."""
+    spec = importlib.util.spec_from_file_location("reference_tables",
+                                                  ROOT / "scripts" / "reference_tables.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return tuple(module.TABLES)
+
+
+REFERENCE = re.compile("|".join(
+    rf"<!-- generated: {re.escape(n)} -->\n.*?<!-- end generated: {re.escape(n)} -->"
+    for n in reference_tables()), re.S)
+
+
+def hand_typed(text):
+    """[(figure, where)]: the measured figures of a doc's ``text`` outside its measured blocks
+    and reference tables, and its tables of measured figures (a table the text around it calls
+    measured, or names its benchmark for, as one finding)."""
+    text = REFERENCE.sub("", BLOCK.sub("", text))
+    found, heading = [], False
+    paragraphs = [p for p in re.split(r"\n\s*\n", text) if p.strip()]
+    for k, paragraph in enumerate(paragraphs):
+        lines = paragraph.strip("\n").splitlines()
+        if lines[0].startswith("#"):
+            heading = bool(HEADING.search(lines[0]))
+            lines = lines[1:]
+            if not lines:
+                continue
+        if lines[0].lstrip().startswith("|") and len(lines) > 2:
+            head, rows = lines[0], lines[2:]
+            around = " ".join(paragraphs[max(k - 1, 0):k] + paragraphs[k + 1:k + 2])
+            numeric = [c for row in rows for c in cells_of(row) if NUMERIC_CELL.fullmatch(c)]
+            if CALLED_MEASURED.search(around) and len(numeric) >= 2:
+                found.append(("a measured table", head))
+                continue
+            found += [(f, row) for row in rows for f in figures(row, head + " " + row, heading)]
+            columns = [MEASURED_COLUMN.search(CODE.sub(" ", c)) for c in cells_of(head)]
+            found += [(c, row) for row in rows for c, measured in zip(cells_of(row), columns)
+                      if measured and NUMERIC_CELL.fullmatch(c)]
+            continue
+        found += [(f, s) for s in sentences("\n".join(lines)) for f in figures(s, s, heading)]
+    return found
+
+
+@pytest.mark.parametrize("doc", DOCS, ids=lambda d: d.relative_to(ROOT).as_posix())
+def test_no_figure_is_typed_by_hand(doc):
+    """Every figure a benchmark measures stands in a block it writes, with the commit and date
+    it was measured on (docs/simulate.md's tables); the text around says what they show."""
+    found = [f"{figure}: {where[:120]}" for figure, where in hand_typed(doc.read_text())]
+    assert found == [], ("figures typed by hand: have the benchmark that measures them write "
+                         "them (benchmarks/common.py: write_doc_table), or say in words what "
+                         "they show")
+
+
+# figures as they were typed by hand in the docs before their benchmarks wrote them
+TYPED = [
+    "`analyze`, 99 458 triangles × 49 pairs, all fields: 1.33 s, 3.7 M triangle-pairs/s.",
+    "| command | seconds |\n| --- | --- |\n| `clothtool --help` | 0.07 |",
+    "| route | s per pair | vertex-pairs/s |\n|---|---|---|\n| clothtool, 2 threads | 0.032 | 1.57 M |",
+    "The 2D kernel does 1.6·10⁷ triangles/s on 2 threads, 1.0·10⁷ on 1.",
+    "Peak memory, 50 vs 200 frames: 226 MB vs 228 MB.",
+    "Cost: 490 views, 0.3 MB of metadata, about 20 ms to make (the analysis takes about 1.3 s).",
+    "Faces are parsed in one pass (about 85 ms for a frame, 2–2.5× faster than trimesh).",
+    "Gzip costs 9–11× the run time for a 40 % smaller file, so it is off by default.",
+    "The kernel is about 22× faster on one thread with the same accuracy.",
+    "Rotations agree with extended precision to 7e-16 and with scipy's to 8e-15.",
+    "The twist took 94.6 s of CPU against 139.1 s on main (0.68×).",
+    "Under load the analysis takes 1.33 s.",
+    "The sheet costs 137 ms CPU per step against 148 ms before.",
+    "`strain` costs 1.7–2.1× the CPU of `frozen` on the hanging sheet.",
+    "Measured (`python -m benchmarks sweep`): the sweep adds a fixed start, 2–3 s, not a cost "
+    "per run: 24 runs take 1.04× runs × one run on one job.",
+    "Measured on the loaded machine:\n\n| runs | jobs | one run |\n| --- | --- | --- |\n"
+    "| 12 | 1 | 1.38 |\n| 24 | 2 | 1.40 |",
+    "## Performance\n\n| what | figure |\n| --- | --- |\n| analyze | 1.33 s |",
+]
+# inputs, bounds and sizes that are not measured figures
+NOT_TYPED = [
+    "The plate (0.5 m, 12×12, damping 0.01 s), 0.5 s at 30 fps, shear 1e3 N/m, bend 1e-3 N·m.",
+    "`make bench` takes at most 900 s; the goal: ≤ 1.2× the cost, under 2 s a run.",
+    "Stiff cloth at h = 1 s costs more Newton steps.",
+    "The Cusick drape coefficient is within 2 % of the finer mesh's.",
+    "xpbd with 16 × 5 substeps on a 64 × 64 sheet; a sphere turning at π rad/s.",
+    "| option | runs |\n| --- | --- |\n| `--grid` | the product of the lists |",
+    "RING_TOL = 1e-4 flags the thinnest rings.",
+]
+
+
+@pytest.mark.parametrize("text", TYPED)
+def test_a_figure_typed_by_hand_is_found(text):
+    assert hand_typed(text), text
+    line = MEASURED.format(commit="3ee4668", date="2026-01-01", load=1.0, cores=2,
+                           command="python -m benchmarks analyze")
+    block = f"<!-- begin t -->\n{text}\n\n{line}\n<!-- end t -->\n"
+    assert hand_typed(block) == [], "inside a measured block it is the benchmark's"
+
+
+@pytest.mark.parametrize("text", NOT_TYPED)
+def test_an_input_or_a_bound_is_not_a_figure(text):
+    assert hand_typed(text) == []
+
+
+def git(*args):
+    done = subprocess.run(["git", "-C", str(ROOT), *args], capture_output=True, text=True)
+    return done.returncode, done.stdout.strip()
+
+
+def test_each_measured_line_names_a_commit_of_this_history():
+    """A 'measured on <commit>' line names a commit this checkout descends from (a table
+    measured on another branch, or a line typed by hand, is caught); skipped outside a full
+    git checkout."""
+    if git("rev-parse", "--is-shallow-repository") != (0, "false"):
+        pytest.skip("not a full git checkout")
+    commits = {m.group(1).rstrip("+") for doc in DOCS for m in LINE.finditer(doc.read_text())}
+    assert commits
+    assert [c for c in sorted(commits)
+            if git("merge-base", "--is-ancestor", c, "HEAD")[0] != 0] == []

@@ -8,8 +8,11 @@
 - a preset config runs; bad input is one line and exit code 2.
 """
 
+import hashlib
 import json
 import math
+import tomllib
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -59,6 +62,25 @@ def test_every_preset_is_positive_definite(name):
     measured_pd = np.linalg.eigvalsh(tensor).min() > 0
     assert (fabrics.coupling(name) is not None) == measured_pd
     assert measured_pd == (name != "navy-sparkle-sweat")  # the one the docs name
+
+
+def test_the_fabric_table_is_arcsims_to_the_bit():
+    """clothtool/fabrics.csv, read at import, holds the very floats the presets had when they
+    were code rows (the sha256 of the table's sorted items' repr, which round-trips every
+    float, taken from those rows), in ARCSim's order, and ships with the package."""
+    digest = hashlib.sha256(repr(sorted(fabrics.ARCSIM.items())).encode()).hexdigest()
+    assert digest == "b9deeebddd06d2d8f5d402d2e9308fce72c4f25c4c971b01ca5b56ac2d140913"
+    assert fabrics.PRESETS == tuple(sorted(fabrics.PRESETS)) and len(fabrics.PRESETS) == 10
+    pyproject = tomllib.loads((Path(__file__).parents[1] / "pyproject.toml").read_text())
+    assert fabrics.TABLE.name in pyproject["tool"]["setuptools"]["package-data"]["clothtool"]
+
+
+def test_the_fabric_table_reads_its_columns(tmp_path):
+    table = tmp_path / "t.csv"
+    table.write_text("# a note\nname,use,fibres,density,C11,C12,C22,C33,ke_u_edges,ke_45,ke_v_edges\n"
+                     "x,jeans,\"99% cotton, 1% spandex\",0.3,1,2,3,4,5e-6,6e-6,7e-6\n")
+    assert fabrics.read_table(table) == {
+        "x": ("jeans", "99% cotton, 1% spandex", 0.3, (1.0, 2.0, 3.0, 4.0), (5e-6, 6e-6, 7e-6))}
 
 
 def test_a_presets_keys_are_overridden_one_by_one():

@@ -2,13 +2,16 @@
 
 Stiffness-proportional damping with the stiffness frozen at the start of a step,
 ½(x − b)ᵀ(β/ĥ)K(x_n)(x − b), measures the strain rate along the fibre directions of x_n.
-Over a large step that turns the cloth (a sheet released crumpled unfolding, a hanging
-sheet swinging, cloth carried round on a turntable) those directions are stale: the
-damping resists rotations as if they were stretching (a crumpled sheet at one step per
-frame stayed stretched 1.34× for eight frames; a sheet on a turntable at π rad/s followed
-it at 1.83 rad/s). Following Brown, Overby, Narain & Kaufman 2018 ("Accurate dissipative
-forces in optimization integrators", SCA), the damping is instead the potential of the
-actual change over the step of strain measures that no rigid motion changes:
+A step that turns a fibre by φ shortens it along its old direction by (1 − cos φ)‖f‖, a
+strain that did not happen, and that damping resists it with βk/ĥ: at one step per frame
+this is no small correction (a 1 m sheet of 1000 N/m draped on a sphere turning at π rad/s,
+φ = 0.1 per step: 0.13 N on a vertex weighing 0.008 N), so the cloth lags the sphere (0.71
+of its rate), a crumpled sheet stays stretched (1.29 at frame 8) and a hanging sheet creeps
+down where it should swing. Dropping K's stress part (Baraff–Witkin's condition damping
+β JᵀK_C J at x_n, linear and rotation-free to first order) keeps this second-order part
+(0.79, 1.37). Following Brown, Overby, Narain & Kaufman 2018 ("Accurate dissipative forces
+in optimization integrators", SCA), the damping is instead the potential of the actual
+change over the step of strain measures that no rigid motion changes:
 
     Φ(x) = 1/(2ĥ) Σ_t A_t β_t [k_u (‖f0‖ − L_0)² + k_v (‖f1‖ − L_1)² + k_h (f0·f1 − S)²]
          + 1/ĥ Σ_e β_e c_e (θ_e − Θ_e)²
@@ -24,7 +27,13 @@ the frozen form with the matching part of K: its Gauss–Newton Hessian. Stretch
 per column (A βk/ĥ)(‖f‖ − L) f̂ through ∂f/∂x, Hessian (A βk/ĥ)[f̂f̂ᵀ + c(I − f̂f̂ᵀ)],
 c = 1 − L/‖f‖, taken with c clamped at 0 (PSD). Shear: gradient (A βk_h/ĥ)(s − S)(f1, f0),
 Hessian (A βk_h/ĥ)[(f1, f0)(f1, f0)ᵀ + (s − S)H₆], taken without the H₆ part (PSD).
-Bending: the dihedral kernels with c → βc/ĥ and θ̄ → Θ (Gauss–Newton Hessian).
+Bending: with the hinge models, the dihedral kernels with c → βc/ĥ and θ̄ → Θ (Gauss–Newton
+Hessian); with the plate (:mod:`clothtool.sim.energies.plate`), whose strain (the Hessian of
+x over its pattern) is linear in x, 1/(2ĥ) Σ_c (x − b)_cᵀ β k_b Q (x − b)_c on the plate's own
+blocks, the term above with Θ = Ĥ(b): a rigid turn of bent cloth feels β ω × its bending
+force and nothing of second order (hinges would add 15 % to the blocks of the 64² sheet's
+matrix, and with their kernel cost 0.4× a frozen step). The triangles' Φ is assembled in
+the same pass as the membrane's W (:func:`strain_assemble`): both read the same F.
 """
 
 import numpy as np
@@ -32,10 +41,15 @@ from numba import njit
 
 from clothtool.geometry import dihedral_angles
 from clothtool.sim.energies.bending import dihedral_assemble, dihedral_total_energy
-from clothtool.sim.energies.membrane import add_triangle, deformation_gradient
-from clothtool.vec3 import dot, load
+from clothtool.sim.energies.plate import hessian_gradient
+from clothtool.sim.energies.membrane import (add_triangle, deformation, deformation_gradient,
+                                             membrane_density, membrane_total_energy,
+                                             to_vertices)
+from clothtool.vec3 import add, dot, load, scale
 
 EPS = 1e-12
+ZERO = (0.0, 0.0, 0.0)
+NO_GRADIENT = np.zeros((0, 3))  # the energy-only call of the plate's kernel
 
 
 @njit(cache=True)
@@ -51,65 +65,91 @@ def strain_measures(x, faces, dr_inv, out):
 
 
 @njit(cache=True)
+def dissipation_density(f0, f1, coef, base, exact, g0, g1, h_f):
+    """φ = ½ Σ_c coef_c (m_c − base_c)² per unit rest area, m = (‖f0‖, ‖f1‖, f0·f1), at
+    F = (f0, f1); returns (φ, g0 + ∂φ/∂f0, g1 + ∂φ/∂f1) and adds ∂²φ/∂vec F² to h_f (6, 6):
+    exact with ``exact``, else with c clamped at 0 and without the shear's H₆ part."""
+    energy = 0.0
+    for col in range(2):
+        f = f0 if col == 0 else f1
+        k = coef[col]
+        n = max(np.sqrt(dot(f, f)), EPS)
+        gap = n - base[col]
+        energy += 0.5 * k * gap * gap
+        c = 1.0 - base[col] / n
+        if not exact and c < 0.0:
+            c = 0.0
+        o = 3 * col
+        for p in range(3):
+            for q in range(3):
+                h_f[o + p, o + q] += k * (1.0 - c) * f[p] * f[q] / (n * n)
+            h_f[o + p, o + p] += k * c
+        if col == 0:
+            g0 = add(g0, scale(k * gap / n, f))
+        else:
+            g1 = add(g1, scale(k * gap / n, f))
+    # shear s = f0·f1: ∂s/∂f0 = f1, ∂s/∂f1 = f0, ∂²s/∂f0∂f1 = I
+    k = coef[2]
+    gap = dot(f0, f1) - base[2]
+    energy += 0.5 * k * gap * gap
+    g0 = add(g0, scale(k * gap, f1))
+    g1 = add(g1, scale(k * gap, f0))
+    for p in range(3):
+        for q in range(3):
+            h_f[p, q] += k * f1[p] * f1[q]
+            h_f[p, 3 + q] += k * f1[p] * f0[q]
+            h_f[3 + p, q] += k * f0[p] * f1[q]
+            h_f[3 + p, 3 + q] += k * f0[p] * f0[q]
+        if exact:
+            h_f[p, 3 + p] += k * gap
+            h_f[3 + p, p] += k * gap
+    return energy, g0, g1
+
+
+@njit(cache=True)
 def dissipation_element(x0, x1, x2, dr_inv, area, coef, base, exact, grad, hess):
     """Φ of one triangle, coef = (βk_u/ĥ, βk_v/ĥ, βk_h/ĥ), base = (L_0, L_1, S); writes its
     gradient (9,) and Hessian (9, 9) (vertex-major): exact with ``exact``, else with c
     clamped at 0 and without the shear's H₆ part."""
-    f0, f1 = deformation_gradient(x0, x1, x2, dr_inv)
-    a, b, c, d = dr_inv[0, 0], dr_inv[0, 1], dr_inv[1, 0], dr_inv[1, 1]
-    weights = ((-a - c, a, c), (-b - d, b, d))  # f0 = Σ α_v x_v, f1 = Σ β_v x_v
-    grad[:] = 0.0
-    hess[:, :] = 0.0
-    energy = 0.0
-    for col in range(2):
-        f = f0 if col == 0 else f1
-        k = area * coef[col]
-        n = max(np.sqrt(dot(f, f)), EPS)
-        gap = n - base[col]
-        energy += 0.5 * k * gap * gap
-        across = k * (1.0 - base[col] / n)
-        if not exact and across < 0.0:
-            across = 0.0
-        w = weights[col]
-        for v in range(3):
-            for p in range(3):
-                grad[3 * v + p] += k * gap * f[p] / n * w[v]
-            for u in range(3):
-                ww = w[v] * w[u]
-                for p in range(3):
-                    for q in range(3):
-                        ff = f[p] * f[q] / (n * n)
-                        hess[3 * v + p, 3 * u + q] += ww * (k * ff + across * ((1.0 if p == q else 0.0) - ff))
-    # shear s = f0·f1: ∂s/∂x_v = α_v f1 + β_v f0, ∂²s/∂x_v∂x_u = (α_v β_u + β_v α_u) I
-    k = area * coef[2]
-    gap = dot(f0, f1) - base[2]
-    energy += 0.5 * k * gap * gap
-    al, be = weights[0], weights[1]
-    for v in range(3):
-        for p in range(3):
-            gv = al[v] * f1[p] + be[v] * f0[p]
-            grad[3 * v + p] += k * gap * gv
-            for u in range(3):
-                for q in range(3):
-                    hess[3 * v + p, 3 * u + q] += k * gv * (al[u] * f1[q] + be[u] * f0[q])
-            if exact:
-                for u in range(3):
-                    hess[3 * v + p, 3 * u + p] += k * gap * (al[v] * be[u] + be[v] * al[u])
-    return energy
+    f0, f1, alpha, beta = deformation(x0, x1, x2, dr_inv)
+    h_f = np.zeros((6, 6))
+    energy, g0, g1 = dissipation_density(f0, f1, coef, base, exact, ZERO, ZERO, h_f)
+    to_vertices(alpha, beta, area, g0, g1, h_f, grad, hess)
+    return area * energy
 
 
 @njit(cache=True)
-def dissipation_assemble(x, faces, dr_inv, area, coef, base, slots, grad, values):
-    """Φ(x) of the triangles; adds its gradient to grad (N, 3) and projected Hessian blocks
-    to values."""
+def strain_assemble(x, faces, dr_inv, area, stretch, k_shear, coef, base, slots, grad, values):
+    """(W, Φ) of the triangles; adds both gradients and projected Hessian blocks to grad
+    (N, 3) and values in one pass: W the membrane's (``stretch`` (M, 4), ``k_shear`` (M,),
+    :mod:`clothtool.sim.energies.membrane`), none when ``stretch`` has no rows."""
     g = np.empty(9)
     hess = np.empty((9, 9))
-    total = 0.0
+    h_f = np.empty((6, 6))
+    fused = stretch.shape[0] > 0
+    membrane, total = 0.0, 0.0
     for t in range(faces.shape[0]):
-        total += dissipation_element(load(x, faces[t, 0]), load(x, faces[t, 1]),
-                                     load(x, faces[t, 2]), dr_inv[t], area[t], coef[t],
-                                     base[t], False, g, hess)
+        f0, f1, alpha, beta = deformation(load(x, faces[t, 0]), load(x, faces[t, 1]),
+                                          load(x, faces[t, 2]), dr_inv[t])
+        g0, g1 = ZERO, ZERO
+        if fused:
+            w, g0, g1 = membrane_density(f0, f1, stretch[t], k_shear[t], True, h_f)
+            membrane += area[t] * w
+        else:
+            h_f[:, :] = 0.0
+        phi, g0, g1 = dissipation_density(f0, f1, coef[t], base[t], False, g0, g1, h_f)
+        total += area[t] * phi
+        to_vertices(alpha, beta, area[t], g0, g1, h_f, g, hess)
         add_triangle(faces[t], slots[t], g, hess, grad, values)
+    return membrane, total
+
+
+@njit(cache=True)
+def strain_energy(x, faces, dr_inv, area, stretch, k_shear, coef, base):
+    """W + Φ of the triangles (W as in :func:`strain_assemble`)."""
+    total = dissipation_energy(x, faces, dr_inv, area, coef, base)
+    if stretch.shape[0] > 0:
+        total += membrane_total_energy(x, faces, dr_inv, area, stretch, k_shear)
     return total
 
 
@@ -131,11 +171,16 @@ def dissipation_energy(x, faces, dr_inv, area, coef, base):
 class StrainDissipation:
     """Φ over the Model's triangles (``strain_damping`` (M, 3): β_t k_u, β_t k_v, β_t k_h)
     and hinges (``bend_damping`` (H,): β_e c_e; none when None); :meth:`begin` sets the
-    step's ĥ and the strains its rates are measured from."""
+    step's ĥ and the strains its rates are measured from. With ``membrane`` (the Model's
+    :class:`~clothtool.sim.energies.terms.Membrane` term) its energy and assembly are
+    W_membrane + Φ, in one pass over the triangles (both read the same F): the Newton loop
+    then leaves that term out of the elastic sum."""
 
-    def __init__(self, model):
+    def __init__(self, model, membrane=None):
         self.faces, self.dr_inv, self.area = model.faces, model.dr_inv, model.area
         self.slots = model.tri_slots
+        self.stretch = membrane.stretch if membrane is not None else np.zeros((0, 4))
+        self.shear = membrane.shear if membrane is not None else np.zeros(0)
         self.damping = np.ascontiguousarray(model.strain_damping, dtype=np.float64)
         self.coef = np.zeros_like(self.damping)
         self.base = np.zeros_like(self.damping)
@@ -145,6 +190,13 @@ class StrainDissipation:
         self.bend = np.zeros(len(self.hinge)) if bend is None else bend
         self.bend_coef = np.zeros_like(self.bend)
         self.angle = np.zeros_like(self.bend)
+        self.plate = model.plate_damping
+        if self.plate is not None:
+            ptr, col, val = self.plate
+            rows = np.repeat(np.arange(len(ptr) - 1), np.diff(ptr))
+            self.plate_slots = model.pattern.slots(np.stack([rows, col], axis=1))[:, 1]
+            self.plate_coef = np.zeros_like(val)
+            self.plate_base = np.zeros((len(ptr) - 1, 3))
 
     def begin(self, past, h_eff):
         """The step's ĥ and base strains Σ w_i m(x_i) over the (w_i, x_i) of ``past``
@@ -159,13 +211,34 @@ class StrainDissipation:
             if len(self.hinge):
                 self.angle += weight * dihedral_angles(x, self.hinge)
         np.maximum(self.base[:, :2], 0.0, out=self.base[:, :2])
+        if self.plate is not None:  # the plate's strain is linear: its base is Σ w_i x_i
+            np.multiply(self.plate[2], 1.0 / h_eff, out=self.plate_coef)
+            self.plate_base[:] = 0.0
+            for weight, x in past:
+                self.plate_base += weight * x
 
     def energy(self, x):
-        total = dissipation_energy(x, self.faces, self.dr_inv, self.area, self.coef, self.base)
-        return total + dihedral_total_energy(x, self.hinge, self.angle, self.bend_coef)
+        total = strain_energy(x, self.faces, self.dr_inv, self.area, self.stretch, self.shear,
+                              self.coef, self.base)
+        return total + self._bending(x, NO_GRADIENT, None)
 
     def assemble(self, x, grad, values):
-        total = dissipation_assemble(x, self.faces, self.dr_inv, self.area, self.coef,
-                                     self.base, self.slots, grad, values)
-        return total + dihedral_assemble(x, self.hinge, self.angle, self.bend_coef,
-                                         self.hinge_slots, grad, values)
+        membrane, total = strain_assemble(x, self.faces, self.dr_inv, self.area, self.stretch,
+                                          self.shear, self.coef, self.base, self.slots, grad,
+                                          values)
+        return membrane + total + self._bending(x, grad, values)
+
+    def _bending(self, x, grad, values):
+        """Bending's Φ; with ``values``, its gradient added to grad and its Hessian to values:
+        the hinges' (dihedral kernels, c → βc/ĥ, θ̄ → Θ) or the plate's, 1/(2ĥ) Σ_c
+        (x − b)_cᵀ β k_b Q (x − b)_c with constant Hessian β k_b Q/ĥ."""
+        if self.plate is not None:
+            ptr, col, _ = self.plate
+            if values is not None:
+                for p in range(3):
+                    values[self.plate_slots, p, p] += self.plate_coef
+            return hessian_gradient(x - self.plate_base, ptr, col, self.plate_coef, grad)
+        if values is None:
+            return dihedral_total_energy(x, self.hinge, self.angle, self.bend_coef)
+        return dihedral_assemble(x, self.hinge, self.angle, self.bend_coef, self.hinge_slots,
+                                 grad, values)

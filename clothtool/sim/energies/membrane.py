@@ -175,7 +175,15 @@ def membrane_element(x0, x1, x2, dr_inv, area, stretch, k_shear, project, grad, 
     ``h_f`` (6, 6) is workspace; it is left holding ∂²Ψ/∂vec F².
     """
     f0, f1, alpha, beta = deformation(x0, x1, x2, dr_inv)
-    energy = area * _density(f0, f1, stretch, k_shear)
+    energy, g0, g1 = membrane_density(f0, f1, stretch, k_shear, project, h_f)
+    to_vertices(alpha, beta, area, g0, g1, h_f, grad, hess)
+    return area * energy
+
+
+@njit(cache=True)
+def membrane_density(f0, f1, stretch, k_shear, project, h_f):
+    """(Ψ, ∂Ψ/∂f0, ∂Ψ/∂f1) at F = (f0, f1); writes ∂²Ψ/∂vec F² (PSD-projected with
+    ``project``) into h_f (6, 6)."""
     g0, g1 = _stress(f0, f1, stretch, k_shear)
     h_f[:, :] = 0.0
     if stretch[0] > 0.0:
@@ -184,7 +192,14 @@ def membrane_element(x0, x1, x2, dr_inv, area, stretch, k_shear, project, grad, 
         _stretch_block(f1, stretch[1], stretch[3], project, h_f, 3)
     if k_shear > 0.0:
         _shear_hessian(f0, f1, k_shear, project, h_f)
-    # chain rule through f0 = Σ α_v x_v, f1 = Σ β_v x_v
+    return _density(f0, f1, stretch, k_shear), g0, g1
+
+
+@njit(cache=True)
+def to_vertices(alpha, beta, area, g0, g1, h_f, grad, hess):
+    """The chain rule through f0 = Σ α_v x_v, f1 = Σ β_v x_v: grad (9,) = A (α_v g0 + β_v g1)
+    and hess (9, 9) = A Bᵀ h_f B (vertex-major) from a density's vec-F gradient (g0, g1)
+    and Hessian h_f (6, 6)."""
     for v in range(3):
         for p in range(3):
             grad[3 * v + p] = area * (alpha[v] * g0[p] + beta[v] * g1[p])
@@ -198,7 +213,6 @@ def membrane_element(x0, x1, x2, dr_inv, area, stretch, k_shear, project, grad, 
                 for q in range(3):
                     hess[3 * v + p, 3 * w + q] = (aa * h_f[p, q] + ab * h_f[p, 3 + q]
                                                   + ba * h_f[3 + p, q] + bb * h_f[3 + p, 3 + q])
-    return energy
 
 
 @njit(cache=True)

@@ -272,9 +272,13 @@ class ModelBuilder:
             terms.append(Stitch(self.stitches, self.stitch_stiffness.copy()))
         beta = self.tri_damping
         strain = self.material.damping_model == "strain" and np.any(beta > 0.0)
-        bend_damping = None
+        bend_damping = plate_damping = None
         elements = [t.elements for t in terms]
-        if strain and len(hinge):  # the bending dissipation's hinges in the matrix too
+        if strain and plate is not None:
+            # the plate's strain (the Hessian of x over its pattern) is linear in x: its
+            # dissipation potential has the plate's own matrix, β k_b Q
+            plate_damping = self._damped_plate(plate_matrix or plate, q, uv, rigidity, anisotropy)
+        elif strain and len(hinge):  # the bending dissipation's hinges in the matrix too
             bend_damping = coef * beta[hinge_faces].mean(axis=1)
             elements.append(hinge)
         pattern = BlockPattern(n, *elements)
@@ -290,12 +294,9 @@ class ModelBuilder:
             scaled = self.tri_stretch.copy()
             scaled[:, :2] *= beta[:, None]
             damped_plate = None
-            if plate is not None:  # k_v β_v per vertex, on the plate's own sparsity
-                from clothtool.sim.energies.plate import on_pattern
-
-                damped = plate_matrices(uv, faces, self._per_vertex(rigidity * beta),
-                                        anisotropy)[0]
-                damped_plate = (*_csr(q)[:2], on_pattern(q, damped))
+            if plate is not None:
+                damped_plate = self._damped_plate(plate_matrix or plate, q, uv, rigidity,
+                                                   anisotropy)
             damping_terms = _elastic_terms(faces, dr_inv, self.area, scaled,
                                            self.tri_shear * beta, bend_model, damped_plate, n,
                                            hinge, rest_angle,
@@ -319,9 +320,21 @@ class ModelBuilder:
             stitches=next((t for t in terms if isinstance(t, Stitch)), None),
             origin=self.origin, file_vertex=self.file_vertex,
             damping_terms=damping_terms, damping_constant=damping_constant,
-            strain_damping=strain_damping, bend_damping=bend_damping,
+            strain_damping=strain_damping, bend_damping=bend_damping, plate_damping=plate_damping,
             hinge_damping_slots=pattern.slots(hinge) if bend_damping is not None else None,
         )
+
+    def _damped_plate(self, plate, q, uv, rigidity, anisotropy):
+        """The plate (ptr, col, val) with each vertex's k_v β_v in place of k_v, on the plate's
+        own sparsity (β the triangles' damping, one value: val · β)."""
+        from clothtool.sim.energies.plate import hessian_bending_matrix, on_pattern
+
+        beta = self.tri_damping
+        if np.all(beta == beta[0]):
+            return (*plate[:2], plate[2] * beta[0])
+        damped = hessian_bending_matrix(uv, self.mesh.faces,
+                                        self._per_vertex(rigidity * beta), anisotropy)
+        return (*plate[:2], on_pattern(q, damped))
 
     def _per_vertex(self, value):
         """(N,) the area-weighted mean over each vertex's triangles of a per-triangle value."""

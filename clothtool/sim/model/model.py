@@ -54,10 +54,11 @@ class Model:
     damping_terms: list | None = None  # shear and bending damping: the terms with stiffness × β_e
     damping_constant: np.ndarray | None = None  # their constant Hessian blocks
     # damping_model: strain (clothtool.sim.energies.dissipation): (M, 3) β_t k_u, β_t k_v,
-    # β_t k_h; (H,) β_e c_e of the hinges (None without bending) on their slots
+    # β_t k_h; (H,) β_e c_e of the hinges (None without hinge bending) on their slots
     strain_damping: np.ndarray | None = None
     bend_damping: np.ndarray | None = None
     hinge_damping_slots: np.ndarray | None = None
+    plate_damping: tuple | None = None  # (ptr, col, val) of β k_b Q: the plate's, in place of hinges
     origin: np.ndarray | None = None  # (N, 3) positions at t = 0 when not mesh.positions (a weld)
     file_vertex: np.ndarray | None = None  # (N_file,) model vertex of each file vertex (a weld)
 
