@@ -60,6 +60,17 @@ def test_order_of_convergence_with_the_default_newton_settings(integrator, low, 
     assert all(low <= p <= high for p in orders), (errors, orders)
 
 
+def test_bdf2_is_second_order_with_the_default_plate_solved_tightly(soft_reference):
+    """The default bending (the ``hessian`` plate) with Newton and PCG solved tightly: BDF2's
+    order between 4, 8 and 16 steps per frame is 1.5–2.5 (1.87 and 2.00)."""
+    soft = {"stretch": 1e3, "shear": 1e2, "bend": 1e-2}
+    assert load_config(plate(material=soft)).material.bend_model == "hessian"
+    errors = [distance(final(plate(s, nx=6, frames=9, material=soft, integrator="bdf2",
+                                   **TIGHT)), soft_reference) for s in (4, 8, 16)]
+    orders = [math.log2(a / b) for a, b in zip(errors, errors[1:])]
+    assert all(1.5 <= p <= 2.5 for p in orders), (errors, orders)
+
+
 def test_the_integrator_keys_are_validated():
     base = {"mesh": {"grid": {"nx": 4, "ny": 4}}}
     with pytest.raises(InputError, match=r"solver.integrator must be one of bdf2, euler, "

@@ -260,7 +260,7 @@ class ModelBuilder:
             uv = mesh.uv if mesh.uv is not None else _plane_pattern(mesh.rest3d)
             rigidity, anisotropy = self._plate_rigidity()
             q, correction = plate_matrices(
-                uv, faces, self._per_vertex(rigidity), anisotropy, held=pinned,
+                uv, faces, self._per_vertex(rigidity), anisotropy, pinned,
                 sharpen=SHARPEN if self.material.plate_correction else 0.0)
             plate = _csr(q if correction is None else q + correction)
             plate_matrix = None if correction is None else _csr(q)
@@ -277,7 +277,8 @@ class ModelBuilder:
         if strain and plate is not None:
             # the plate's strain (the Hessian of x over its pattern) is linear in x: its
             # dissipation potential has the plate's own matrix, β k_b Q
-            plate_damping = self._damped_plate(plate_matrix or plate, q, uv, rigidity, anisotropy)
+            plate_damping = self._damped_plate(plate_matrix or plate, q, uv, rigidity, anisotropy,
+                                               pinned)
         elif strain and len(hinge):  # the bending dissipation's hinges in the matrix too
             bend_damping = coef * beta[hinge_faces].mean(axis=1)
             elements.append(hinge)
@@ -296,7 +297,7 @@ class ModelBuilder:
             damped_plate = None
             if plate is not None:
                 damped_plate = self._damped_plate(plate_matrix or plate, q, uv, rigidity,
-                                                   anisotropy)
+                                                   anisotropy, pinned)
             damping_terms = _elastic_terms(faces, dr_inv, self.area, scaled,
                                            self.tri_shear * beta, bend_model, damped_plate, n,
                                            hinge, rest_angle,
@@ -324,16 +325,16 @@ class ModelBuilder:
             hinge_damping_slots=pattern.slots(hinge) if bend_damping is not None else None,
         )
 
-    def _damped_plate(self, plate, q, uv, rigidity, anisotropy):
+    def _damped_plate(self, plate, q, uv, rigidity, anisotropy, pinned):
         """The plate (ptr, col, val) with each vertex's k_v β_v in place of k_v, on the plate's
-        own sparsity (β the triangles' damping, one value: val · β)."""
+        own sparsity (β the triangles' damping, one value: val · β; ``pinned`` its clamps)."""
         from clothtool.sim.energies.plate import hessian_bending_matrix, on_pattern
 
         beta = self.tri_damping
         if np.all(beta == beta[0]):
             return (*plate[:2], plate[2] * beta[0])
         damped = hessian_bending_matrix(uv, self.mesh.faces,
-                                        self._per_vertex(rigidity * beta), anisotropy)
+                                        self._per_vertex(rigidity * beta), anisotropy, pinned)
         return (*plate[:2], on_pattern(q, damped))
 
     def _per_vertex(self, value):
