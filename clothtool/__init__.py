@@ -25,6 +25,7 @@ _LAZY = {
     "load_config": ("clothtool.sim.model.config", "load_config"),
     "sweep": ("clothtool.sweeps.api", "sweep"),
     "sweep_report": ("clothtool.sweeps.report", "sweep_report"),
+    "fit": ("clothtool.sweeps.motion_fit", "fit"),
 }
 
 from clothtool.errors import ClothtoolError, InputError, NumericalError  # noqa: E402

@@ -591,6 +591,72 @@ def sweep(base, output, grid, zipped, random, ranges, seed, settings, jobs, slur
         click.get_current_context().exit(3)
 
 
+FIT_EPILOG = """\b
+Examples:
+  clothtool fit sample_data/strip.yaml --target sample_data/strip_capture \\
+        --range material.bend=1e-6:1e-3:log --range material.damping=1e-3:0.1:log -o fit/
+      the bending and damping that make the strip fall as the capture did
+  clothtool fit sheet.yaml --target 'scan/*.ply' --range material.stretch=1e3:1e5:log \\
+        -o fit/ -j 2        a scan, compared surface to surface; 2 simulations at a time
+  clothtool fit sheet.yaml --target cap/ --range material.bend.0=1e-6:1e-4:log \\
+        --range material.bend.1=1e-6:1e-4:log -o fit/ --slurm      warp and weft, on Slurm
+
+\b
+Rerun the same command to resume (an interruption, or a round left to Slurm).
+Writes DIR/fit.yaml (the config with the fitted values: clothtool simulate DIR/fit.yaml),
+DIR/fit.csv (a row per simulation), DIR/fit.png, DIR/runs/ (each round a sweep).
+
+""" + EXIT_CODES_HELP
+
+OPTIONS.update({"capture": "--target", "compare": "--compare", "outliers": "--outliers",
+                "max_simulations": "--max-simulations"})
+
+
+@main.command(epilog=FIT_EPILOG)
+@click.argument("config", type=click.Path(dir_okay=False))
+@click.option("--target", required=True, multiple=True, metavar="FRAMES",
+              help="The capture: a folder, glob or list of PLY/OBJ frames (repeatable); frame 0 "
+                   "the initial state, frame k the config's output frame k.")
+@click.option("--range", "ranges", required=True, multiple=True, metavar="KEY=LO:HI[:log]",
+              help="A numeric config key to fit and its range (repeatable); log: in log space.")
+@simulation_options("Fit folder: fit.yaml, fit.csv, fit.png, runs/ (a rerun resumes it).",
+                    rounds=True)
+@click.option("--compare", type=click.Choice(["auto", "vertex", "surface"]), default="auto",
+              show_default=True, help="Vertex for vertex (the capture has the config's mesh) or "
+                                      "each captured vertex to the simulated surface; auto: "
+                                      "vertex for vertex when the meshes match.")
+@click.option("--outliers", type=float, default=None, metavar="DIST",
+              help="Metres beyond which a residual counts less and less (Cauchy loss): stray "
+                   "points of a scan do not pull the fit.")
+@click.option("--max-simulations", default=40, show_default=True, type=int,
+              help="Stop after this many simulations with the best so far.")
+@click.option("--compare-strain", is_flag=True,
+              help="Also analyse the capture and the fit (against their first frames) and "
+                   "report the per-triangle stretch difference.")
+@QUIET
+def fit(config, target, ranges, output, settings, jobs, slurm, compare, outliers,
+        max_simulations, compare_strain, quiet):
+    """Fit material values so that the simulation of CONFIG moves as a captured sequence
+    did (scipy's trust-region least squares, finite-difference Jacobian in log space).
+
+    CONFIG reproduces the capture's setup (mesh, pins, colliders, fps, frames). The report
+    gives each fitted value with its uncertainty (from the Jacobian at the fit), the RMS and
+    largest distance, and the values the capture cannot tell apart.
+    """
+    from clothtool.sweeps.motion_fit import fit as run_fit
+
+    with runs_bar(quiet, slurm, "fit") as bar:
+        result = run_fit(config, list(target), list(ranges), output, settings=list(settings),
+                         compare=compare, outliers=outliers, jobs=jobs, slurm=slurm,
+                         max_simulations=max_simulations, compare_strain=compare_strain,
+                         on_done=bar and (lambda r, s: bar.update()),
+                         log=None if quiet else (
+                             (lambda line: bar.write(line, file=sys.stderr)) if bar is not None
+                             else (lambda line: click.echo(line, err=True))))
+    if not quiet or slurm:
+        click.echo(result.describe())
+
+
 @main.command("sweep-report")
 @click.argument("runs", type=click.Path(file_okay=False))
 @click.option("--plot", multiple=True, metavar="METRIC",

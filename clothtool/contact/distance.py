@@ -9,6 +9,7 @@ of the triangle; end point or interior of each segment) is the distance type of 
 theorem ∇_{x_k} d² = 2 w_k r in every region, the weights held fixed.
 """
 
+import numpy as np
 from numba import njit
 
 
@@ -111,3 +112,26 @@ def cross_squared(x, a0, a1, b0, b1):
     c1 = u[2] * v[0] - u[0] * v[2]
     c2 = u[0] * v[1] - u[1] * v[0]
     return c0 * c0 + c1 * c1 + c2 * c2
+
+
+@njit(cache=True)
+def closest_offsets(x, faces, first, points, candidates, out):
+    """The offset p − c from its closest point c on the candidate triangles, for each row r:
+    p = x[first + points[r]], candidates[r] triangle indices into ``faces`` (−1: none);
+    written to ``out[r]``, the distance returned."""
+    w = np.empty(4)
+    dist = np.empty(len(points))
+    for r in range(len(points)):
+        p = first + points[r]
+        best = np.inf
+        for f in candidates[r]:
+            if f < 0:
+                continue
+            a, b, c = faces[f, 0], faces[f, 1], faces[f, 2]
+            d2 = point_triangle_weights(x, p, a, b, c, w)
+            if d2 < best:
+                best = d2
+                for i in range(3):
+                    out[r, i] = x[p, i] + w[1] * x[a, i] + w[2] * x[b, i] + w[3] * x[c, i]
+        dist[r] = np.sqrt(best)
+    return dist

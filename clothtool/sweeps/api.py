@@ -46,7 +46,7 @@ class SweepResult:
 
 def sweep(base, output_dir, *, grid=None, zip=None, random=None, ranges=None, seed=None,
           settings=None, jobs=1, slurm=False, per_task=1, analyze=False,
-          fields=ANALYSIS_FIELDS, retry_failed=False, on_done=None):
+          fields=ANALYSIS_FIELDS, retry_failed=False, on_done=None, pool=None):
     """Run (or, with ``slurm``, prepare) a parameter sweep over the config file ``base``.
 
     ``grid``: {dotted key: [values]} or ``["key=v1,v2", …]``, the product of the lists;
@@ -63,7 +63,9 @@ def sweep(base, output_dir, *, grid=None, zip=None, random=None, ranges=None, se
     ``slurm``: write ``output_dir/sweep.sbatch`` (``per_task`` runs per array task) instead
     of running (:mod:`clothtool.sweeps.slurm`). ``analyze``: analyse each run's frames
     against the rest pattern (``reference='uv'``, ``fields``) into ``run_…/analysis.h5``.
-    ``on_done(run, status)`` is called as each run ends. Returns a :class:`SweepResult`.
+    ``on_done(run, status)`` is called as each run ends. ``pool``: a running
+    :class:`~clothtool.sweeps.pool.Pool` (made with the same analysis) to run the runs on in
+    place of a pool of ``jobs`` of its own; it is left running. Returns a :class:`SweepResult`.
     """
     started = time.perf_counter()
     for name, value in (("jobs", jobs), ("per_task", per_task)):
@@ -83,11 +85,11 @@ def sweep(base, output_dir, *, grid=None, zip=None, random=None, ranges=None, se
             raise InputError(exc.detail, keyword="fields", value=fields) from None
         analysis = {"reference": "uv", "fields": ",".join(names)}
     # the pool process starts now, so that its imports overlap the checks and the writing
-    pool = None
-    if jobs > 1 and not slurm:
+    own = pool is None and jobs > 1 and not slurm
+    if own:
         from clothtool.sweeps.pool import Pool
 
-        pool = Pool(output_dir, analysis, jobs)
+        pool = Pool(analysis, jobs)
     try:
         record, configs, methods = plan(base, grid=grid, zipped=zip, random=random,
                                         ranges=ranges, seed=seed, settings=settings,
@@ -121,16 +123,16 @@ def sweep(base, output_dir, *, grid=None, zip=None, random=None, ranges=None, se
             if on_done is not None:
                 on_done(run, status)
 
-        if pool is not None:
+        if pool is not None and not slurm:
             if todo:
-                pool.run(todo, methods, done)
+                pool.run(folder.root, todo, methods, done)
         else:
             from clothtool.sweeps.run import run_one
 
             for run in todo:
                 done(run, run_one(folder.root, run, analysis))
     finally:
-        if pool is not None:
+        if own:
             pool.close()
     _count(result, statuses, [])
     result.seconds = time.perf_counter() - started

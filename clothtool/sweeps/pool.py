@@ -12,6 +12,8 @@ run while the runs' configs are checked and the folder is written, and run once 
 workers: a worker is a copy-on-write fork of a process that has imported them and has
 started no thread (numba's threads start with its first parallel kernel, in the workers).
 Each worker still loads from numba's on-disk cache the compiled kernels its first run calls.
+A sweep is one batch of runs (:meth:`Pool.run`); ``clothtool fit`` hands the same pool a batch
+per round, and the workers stay from one batch to the next, their kernels loaded.
 
 Only the caller writes the manifest; a worker writes its runs' ``status.json``. A worker
 that dies (killed, out of memory) fails its run with a message naming the signal or exit
@@ -59,9 +61,9 @@ def available():
 
 class Pool:
     """The caller's side of the pool: starts the pool process at once (it imports while the
-    caller plans); :meth:`run` hands it the runs, :meth:`close` stops it."""
+    caller plans); :meth:`run` hands it a batch of runs, :meth:`close` stops it."""
 
-    def __init__(self, root, analysis, jobs):
+    def __init__(self, analysis, jobs):
         if not available():
             raise InputError("runs at a time on this machine need a POSIX system (fork); "
                              "give 1, or run the sweep on Slurm", keyword="jobs", value=jobs)
@@ -78,14 +80,19 @@ class Pool:
                 [sys.executable, "-c", code, str(theirs.fileno())], pass_fds=[theirs.fileno()],
                 stdin=subprocess.DEVNULL, env=env, start_new_session=True)
             self.conn = Connection(ours.detach())
-        self.conn.send((str(root), analysis, jobs))
+        self.conn.send((analysis, jobs))
         self.started = False  # runs handed to it
+        self.busy = False  # a batch is running
 
-    def run(self, runs, methods, on_done):
-        """Run ``runs`` (ids); ``methods``: the ``solver.method`` names they use (their modules
-        are imported before the workers fork). ``on_done(run, status)`` as each run ends."""
-        self.started = True
-        self.conn.send((list(runs), sorted(methods)))
+    def run(self, root, runs, methods, on_done):
+        """Run ``runs`` (ids) of the sweep in ``root``; ``methods``: the ``solver.method`` names
+        they use (their modules are imported before the workers fork). ``on_done(run, status)``
+        as each run ends."""
+        self.started = self.busy = True
+        try:
+            self.conn.send((str(root), list(runs), sorted(methods)))
+        except OSError:  # it died since the last batch
+            raise self._died() from None
         while True:
             try:
                 message = self.conn.recv()
@@ -94,10 +101,16 @@ class Pool:
             if message is None:
                 break
             on_done(*message)
-        self.process.wait()
+        self.busy = False
 
     def close(self):
-        """Stop the pool process and its workers if they still run (and wait for them)."""
+        """Stop the pool process and its workers if they still run (and wait for them): between
+        batches it is told to end; during one, or before any, it is signalled."""
+        if self.process.poll() is None and self.started and not self.busy:
+            with contextlib.suppress(OSError):
+                self.conn.send(None)
+            with contextlib.suppress(subprocess.TimeoutExpired):
+                self.process.wait(timeout=2 * STOP_WAIT_S)
         if self.process.poll() is None:
             with interrupt.deferred():
                 # before any run it has no worker and has written nothing
@@ -138,13 +151,14 @@ class Pool:
 
 
 def serve(fd):
-    """The pool process's main: import what the runs need, receive the runs, fork the
-    workers and hand the runs out, sending each run's status to the caller."""
+    """The pool process's main: import what the runs need, then for each batch of runs the
+    caller sends, fork the workers and hand the runs out, sending each run's status to the
+    caller and None when the batch is done; None from the caller ends it."""
     caller = Connection(fd)
     _stop_on_first_signal()
     workers = []
     try:
-        root, analysis, jobs = caller.recv()
+        analysis, jobs = caller.recv()
         for name in PRELOAD + (ANALYSIS_PRELOAD if analysis is not None else ()):
             importlib.import_module(name)
         from tqdm import tqdm
@@ -152,16 +166,15 @@ def serve(fd):
         # tqdm's default lock is a multiprocessing semaphore (made even for a disabled bar):
         # a worker stopped by a signal would leak it, and the resource tracker would say so
         tqdm.set_lock(threading.RLock())
-        message = caller.recv()
-        if message is None:
-            return
-        runs, methods = message
         from clothtool.sim.model.methods import METHODS
 
-        for name in methods:
-            METHODS[name].load()
-        _hand_out_runs(caller, root, analysis, jobs, runs, workers)
-        caller.send(None)
+        while (message := caller.recv()) is not None:
+            root, runs, methods = message
+            for name in methods:
+                METHODS[name].load()
+            _hand_out_runs(caller, root, analysis, jobs, runs, workers)
+            caller.send(None)
+        _end(workers)
     except (KeyboardInterrupt, EOFError, OSError):
         pass  # stopped by the caller, or the caller is gone
     finally:
@@ -193,38 +206,38 @@ def _ignore(signum, frame):
     pass
 
 
-def _worker(conn, caller, root, analysis):
-    """A worker's main loop: receive a run id, run it, send back (run, status)."""
+def _worker(conn, caller, analysis):
+    """A worker's main loop: receive (sweep folder, run id), run it, send back (run, status);
+    None ends it."""
     caller.close()  # the pool's connection to the caller: only the pool holds it
     try:
         from clothtool.sweeps.run import run_one
 
-        while True:
-            run = conn.recv()
-            if run is None:
-                return
+        while (message := conn.recv()) is not None:
+            root, run = message
             conn.send((run, run_one(root, run, analysis)))
     except (KeyboardInterrupt, EOFError, BrokenPipeError):
         return  # the pool is stopping; nothing of this run was published
 
 
 class _Worker:
-    def __init__(self, caller, root, analysis):
+    def __init__(self, caller, analysis):
         ctx = multiprocessing.get_context("fork")
         self.conn, child = ctx.Pipe()
-        self.process = ctx.Process(target=_worker, args=(child, caller, root, analysis),
-                                   daemon=True)
+        self.process = ctx.Process(target=_worker, args=(child, caller, analysis), daemon=True)
         self.process.start()
         child.close()
         self.run = None  # the run it is busy with
 
 
 def _hand_out_runs(caller, root, analysis, jobs, runs, workers):
+    """One batch: the runs of the sweep in ``root`` on the ``workers`` (forked as needed, up
+    to ``jobs``; they stay for the next batch, their kernels loaded)."""
     pending = list(reversed(runs))
-    for _ in range(min(jobs, len(runs))):
-        workers.append(_Worker(caller, root, analysis))
+    while len(workers) < min(jobs, len(runs)):
+        workers.append(_Worker(caller, analysis))
     for w in workers:
-        _hand_out(w, pending)
+        _hand_out(w, root, pending)
     while any(w.run is not None for w in workers):
         busy = [w for w in workers if w.run is not None]
         ready = wait([caller] + [w.conn for w in busy] + [w.process.sentinel for w in busy])
@@ -240,29 +253,33 @@ def _hand_out_runs(caller, root, analysis, jobs, runs, workers):
             if message is not None:
                 w.run = None
                 caller.send(message)
-                _hand_out(w, pending)
+                _hand_out(w, root, pending)
             elif not w.process.is_alive():
                 run, w.run = w.run, None
                 w.process.join()
                 caller.send((run, _died(root, run, w.process.exitcode)))
                 workers.remove(w)
                 if pending:
-                    fresh = _Worker(caller, root, analysis)
+                    fresh = _Worker(caller, analysis)
                     workers.append(fresh)
-                    _hand_out(fresh, pending)
+                    _hand_out(fresh, root, pending)
+
+
+def _hand_out(worker, root, pending):
+    if pending:
+        worker.run = pending.pop()
+        with contextlib.suppress(OSError):  # it just died: its sentinel tells, and fails the run
+            worker.conn.send((root, worker.run))
+
+
+def _end(workers):
+    """The caller has no more batches: each worker ends after its loop."""
     for w in workers:
         with contextlib.suppress(OSError):
             w.conn.send(None)
     for w in workers:
         w.process.join()
     workers.clear()
-
-
-def _hand_out(worker, pending):
-    if pending:
-        worker.run = pending.pop()
-        with contextlib.suppress(OSError):  # it just died: its sentinel tells, and fails the run
-            worker.conn.send(worker.run)
 
 
 def _how(exitcode):

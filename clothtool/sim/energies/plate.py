@@ -243,11 +243,13 @@ def _taken_over(faces, n, mass, proj, clamped, yn):
     # T_wv: the part of U_w that v sees fully; the directions are the common eigenvectors of
     # the T_wv of w's ring (they commute on a grid), those of Σ_k 2^k T_wv_k, whose eigenvalue
     # names the set of neighbours that see each direction
-    lam, vec = np.linalg.eigh(np.einsum("eab,ebc,ecd->ead", unseen[w], proj[v], unseen[w]))
-    vec = vec * (lam > 1.0 - SEEN)[:, None, :]
     rank = np.arange(len(e)) - np.searchsorted(w, w)  # v's place in w's ring
+    some = np.flatnonzero(np.einsum("naa->n", unseen)[w] > 0.5)  # w hands something over
+    lam, vec = np.linalg.eigh(np.einsum("eab,ebc,ecd->ead", unseen[w[some]], proj[v[some]],
+                                        unseen[w[some]]))
+    vec = vec * (lam > 1.0 - SEEN)[:, None, :]
     bits = np.zeros((n, 3, 3))
-    np.add.at(bits, w, np.exp2(np.minimum(rank, 30))[:, None, None]
+    np.add.at(bits, w[some], np.exp2(np.minimum(rank[some], 30))[:, None, None]
               * np.einsum("eak,ebk->eab", vec, vec))
     lam, vec = np.linalg.eigh(bits - (np.eye(3)[None] - unseen))  # the rest of I at −1
     out = np.zeros((n, 3, 3))

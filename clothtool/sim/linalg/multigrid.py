@@ -4,11 +4,9 @@ Block-Jacobi PCG needs O(√κ) iterations and κ grows like k h²/m, so stiff c
 at one step per frame takes hundreds. A multilevel preconditioner removes the
 smooth error that Jacobi cannot reach:
 
-- **Setup, once per mesh** (only the pattern): greedy aggregation (Vaněk, Mandel
-  & Brezina 1996, phases 1–3: an aggregate is a vertex and its free neighbours,
-  left-overs join a neighbouring aggregate) of the triangle adjacency, then of
-  each coarse pattern, until at most ``COARSEST`` nodes remain. Each block slot
-  (i, j) of a level maps to the slot (agg i, agg j) of the next.
+- **Setup, once per mesh** (only the pattern): greedy aggregation
+  (:mod:`~clothtool.sim.linalg.aggregation`) of the triangle adjacency, then of each coarse
+  pattern, until at most ``COARSEST`` nodes remain.
 - **Per solve**: with piecewise-constant prolongation P, the Galerkin coarse
   matrix PᵀAP is the sum of the fine 3×3 blocks over each slot map — one pass.
   The fine operator is the filtered S A S + (I − S) that PCG works with, so
@@ -26,52 +24,13 @@ import numpy as np
 from numba import njit
 
 from clothtool.sim.linalg.filter import FREE, PINNED
+from clothtool.sim.linalg.aggregation import coarsen
 from clothtool.sim.linalg.blocks import BlockPattern
 from clothtool.vec3 import copy_into, spd_inverse3
 
 COARSEST = 48  # nodes at which the hierarchy stops (dense Cholesky of ≤ 3·48 unknowns)
 OMEGA = 0.6  # Jacobi smoothing weight (λmax(D⁻¹A) ≤ 2 for these matrices)
 PIVOT = 1e-12  # smallest Cholesky pivot relative to its diagonal entry
-
-
-@njit(cache=True)
-def _aggregate(row_ptr, col):
-    """Greedy aggregation of a graph; returns (aggregate of each node, number of aggregates)."""
-    n = row_ptr.shape[0] - 1
-    agg = np.full(n, -1, dtype=np.int64)
-    count = 0
-    # phase 1: a node whose neighbours are all free starts an aggregate with them
-    for i in range(n):
-        if agg[i] >= 0:
-            continue
-        free = True
-        for s in range(row_ptr[i], row_ptr[i + 1]):
-            if agg[col[s]] >= 0:
-                free = False
-                break
-        if free:
-            for s in range(row_ptr[i], row_ptr[i + 1]):
-                agg[col[s]] = count
-            count += 1
-    # phase 2: left-overs join an aggregate of a neighbour
-    first = agg.copy()
-    for i in range(n):
-        if first[i] >= 0:
-            continue
-        for s in range(row_ptr[i], row_ptr[i + 1]):
-            if first[col[s]] >= 0:
-                agg[i] = first[col[s]]
-                break
-    # phase 3: what is still alone forms aggregates with its unaggregated neighbours
-    for i in range(n):
-        if agg[i] >= 0:
-            continue
-        for s in range(row_ptr[i], row_ptr[i + 1]):
-            if agg[col[s]] < 0:
-                agg[col[s]] = count
-        agg[i] = count
-        count += 1
-    return agg, count
 
 
 class Hierarchy:
@@ -95,26 +54,15 @@ class Hierarchy:
         setup_levels(matrix.values, constraints.kind, constraints.active, matrix.floor,
                      self.arrays)
 
+    def update(self, x, constraints):
+        """Nothing depends on the positions."""
+
     def apply(self, rhs, out):
         """out = B rhs (one cycle; :meth:`setup` first)."""
         vcycle(rhs, out, self.arrays)
 
     def __init__(self, row_ptr, col, graph):
-        levels = [(row_ptr, col)]
-        aggs = []
-        while len(levels[-1][0]) - 1 > COARSEST:
-            rp, cl = levels[-1]
-            n = len(rp) - 1
-            agg, nc = _aggregate(*(graph if not aggs else (rp, cl)))
-            if nc >= n:  # cannot coarsen further
-                break
-            rows = np.repeat(np.arange(n), np.diff(rp))
-            key = agg[rows] * nc + agg[cl]
-            ukey = np.unique(key)
-            counts = np.bincount(ukey // nc, minlength=nc)
-            levels.append((np.concatenate([[0], np.cumsum(counts)]).astype(np.int64),
-                           (ukey % nc).astype(np.int64)))
-            aggs.append((agg, np.searchsorted(ukey, key).astype(np.int64)))
+        levels, aggs = coarsen(row_ptr, col, graph, COARSEST)
         if not aggs:
             raise ValueError("multigrid needs a mesh with more than COARSEST vertices")
         sizes = [len(rp) - 1 for rp, _ in levels]

@@ -22,14 +22,15 @@ from numba import njit
 from clothtool.sim.linalg.filter import PINNED, apply_filter
 from clothtool.sim.linalg.blocks import block_multiply, residual
 from clothtool.sim.linalg.multigrid import COARSEST, NO_MULTIGRID, Hierarchy, vcycle
+from clothtool.sim.linalg.multilevel import COARSEST as MODES_COARSEST
+from clothtool.sim.linalg.multilevel import NO_MODES, ModeMultigrid, mode_cycle
 from clothtool.sim.linalg.pairs import NO_PAIRS, pairs_offdiagonal_multiply
-from clothtool.vec3 import copy_into, spd_inverse3
+from clothtool.sim.linalg.relaxation import block_jacobi
+from clothtool.vec3 import copy_into
 
 
 class BlockJacobi:
     """The block-Jacobi preconditioner: the inverses of the 3×3 diagonal blocks."""
-
-    arrays = NO_MULTIGRID
 
     def __init__(self, n_vertices):
         self.inverse = np.zeros((n_vertices, 3, 3))
@@ -40,11 +41,18 @@ class BlockJacobi:
                      self.inverse)
 
 
+    def update(self, x, constraints):
+        """Nothing depends on the positions."""
+
+
 def make_preconditioner(name, pattern, faces):
     """``solver.preconditioner`` for a matrix pattern: a :class:`Hierarchy` for
-    ``multigrid`` (block Jacobi on meshes too small to coarsen), else block Jacobi."""
+    ``multigrid``, a :class:`~clothtool.sim.linalg.multilevel.ModeMultigrid` for ``amg`` (block
+    Jacobi on meshes too small to coarsen), else block Jacobi."""
     if name == "multigrid" and pattern.n > COARSEST:
         return Hierarchy.for_mesh(pattern, faces)
+    if name == "amg" and pattern.n > MODES_COARSEST:
+        return ModeMultigrid(pattern, faces)
     return BlockJacobi(pattern.n)
 
 
@@ -67,17 +75,6 @@ def _apply_inverse(inv, r, z):
 
 
 @njit(cache=True)
-def block_jacobi(values, diag, kind, floor, inv):
-    """inv = inverses of the diagonal blocks (zero for pinned vertices), each with its
-    eigenvalues at least floor[v] (:func:`~clothtool.vec3.spd_inverse3`)."""
-    for i in range(diag.shape[0]):
-        if kind[i] != PINNED:
-            spd_inverse3(values[diag[i]], floor[i], inv[i])
-        else:
-            inv[i] = 0.0
-
-
-@njit(cache=True)
 def _axpy(alpha, x, y):
     """y += alpha x."""
     for i in range(x.shape[0]):
@@ -96,9 +93,12 @@ def _xpby(x, beta, y):
 
 
 @njit(cache=True)
-def _precondition(inv, r, kind, constrained, z, mg):
-    """z = S P⁻¹ r: block Jacobi, or the multigrid V-cycle when mg holds a hierarchy."""
-    if len(mg[0]) > 1:
+def _precondition(inv, r, kind, constrained, z, mg, row_ptr, col, values, modes):
+    """z = S P⁻¹ r: block Jacobi, the multigrid V-cycle when mg holds a hierarchy, or the mode
+    multigrid's cycle when ``modes`` holds one."""
+    if len(modes[0]) > 0:
+        mode_cycle(r, z, row_ptr, col, values, modes)
+    elif len(mg[0]) > 1:
         vcycle(r, z, mg)
     else:
         _apply_inverse(inv, r, z)
@@ -118,8 +118,18 @@ def filtered_pcg(matrix, b, x, constraints, tol, max_iter, preconditioner, extra
     """
     preconditioner.setup(matrix, constraints)
     return filtered_pcg_arrays(matrix.pattern.row_ptr, matrix.pattern.col, matrix.values, b, x,
-                               constraints.kind, constraints.active, tol,
-                               max_iter, preconditioner.inverse, preconditioner.arrays, extra)
+                               constraints.kind, constraints.active, tol, max_iter,
+                               *_arrays(preconditioner), extra)
+
+
+def _arrays(preconditioner):
+    """What the kernels take of a preconditioner: (block-Jacobi inverses, multigrid arrays,
+    mode-multigrid arrays), the empty layout for the kinds it is not."""
+    if isinstance(preconditioner, ModeMultigrid):
+        return preconditioner.inverse, NO_MULTIGRID, preconditioner.modes
+    if isinstance(preconditioner, Hierarchy):
+        return preconditioner.inverse, preconditioner.arrays, NO_MODES
+    return preconditioner.inverse, NO_MULTIGRID, NO_MODES
 
 
 @njit(cache=True)
@@ -132,10 +142,11 @@ def _residual_with(row_ptr, col, values, extra, b, x, r):
 
 @njit(cache=True)
 def filtered_pcg_arrays(row_ptr, col, values, b, x, kind, constrained, tol, max_iter,
-                        inv, mg, extra):
+                        inv, mg, modes, extra):
     """:func:`filtered_pcg` on plain arrays: ``constrained`` False skips the filter; ``inv``
     the block-Jacobi inverses (:func:`block_jacobi`) and ``mg`` ``NO_MULTIGRID``, or ``mg``
-    the arrays of a multigrid hierarchy after ``setup_levels``; ``extra`` the matrix-free
+    the arrays of a multigrid hierarchy after ``setup_levels``, or ``modes`` those of a mode
+    multigrid after its ``setup`` (``NO_MODES`` for none); ``extra`` the matrix-free
     contact blocks (``NO_PAIRS`` for none)."""
     n = b.shape[0]
     sb = b.copy()
@@ -150,7 +161,7 @@ def filtered_pcg_arrays(row_ptr, col, values, b, x, kind, constrained, tol, max_
         apply_filter(r, kind)
     if b_norm == 0.0:
         b_norm = 1.0  # nothing to solve for but the prescribed components: absolute test
-    _precondition(inv, r, kind, constrained, z, mg)
+    _precondition(inv, r, kind, constrained, z, mg, row_ptr, col, values, modes)
     p = z.copy()
     rz = _dot(r, z)
     res = np.sqrt(_dot(r, r)) / b_norm
@@ -164,7 +175,7 @@ def filtered_pcg_arrays(row_ptr, col, values, b, x, kind, constrained, tol, max_
             res = np.sqrt(_dot(r, r)) / b_norm
             if res <= tol:
                 break
-            _precondition(inv, r, kind, constrained, z, mg)
+            _precondition(inv, r, kind, constrained, z, mg, row_ptr, col, values, modes)
             copy_into(z, p)
             rz = _dot(r, z)
         block_multiply(row_ptr, col, values, p, q)
@@ -178,7 +189,7 @@ def filtered_pcg_arrays(row_ptr, col, values, b, x, kind, constrained, tol, max_
         alpha = rz / pq
         _axpy(alpha, p, x)
         _axpy(-alpha, q, r)
-        _precondition(inv, r, kind, constrained, z, mg)
+        _precondition(inv, r, kind, constrained, z, mg, row_ptr, col, values, modes)
         rz_new = _dot(r, z)
         _xpby(z, rz_new / rz, p)
         rz = rz_new

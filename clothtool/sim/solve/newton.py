@@ -275,6 +275,7 @@ class NewtonIntegrator(Integrator):
             term.begin(stage)
         x, dx, h_eff = stage.start, stage.guess, stage.h_eff
         constraints = ConstraintFilter(self.model.kind, self.model.has_pins)
+        self.preconditioner.update(x, constraints)
         tol, grad = solver.newton_tolerance if tol is None else tol, self._grad
         forcing, g_prev, step, cut = solver.tolerance, 0.0, 1.0, False
         line_search = solver.line_search or any(t.needs_line_search for t in terms)

@@ -1,0 +1,275 @@
+"""The mode multigrid: aggregation whose coarse spaces carry cloth's near-null modes
+(``solver.preconditioner: amg``), a V-cycle used as the PCG preconditioner.
+
+Its pieces, each a module, in the order pyamg's ``smoothed_aggregation_solver`` names them:
+
+- :mod:`~clothtool.sim.linalg.aggregation`: the aggregates and coarse patterns, once per mesh;
+- :mod:`~clothtool.sim.linalg.modes`: the prolongators, rebuilt from the positions at the start
+  of every Newton minimisation (:meth:`ModeMultigrid.update`): each aggregate's rigid motions
+  and in-plane shears, unsmoothed (one block per row of P);
+- :mod:`~clothtool.sim.linalg.galerkin`: the coarse operators Pᵀ A P of every level, per solve
+  (:meth:`ModeMultigrid.setup`);
+- :mod:`~clothtool.sim.linalg.relaxation`: symmetric block Gauss–Seidel on every level,
+  a forward sweep before the coarse correction and a backward one after it, and a dense
+  Cholesky factor of the coarsest level;
+- here: the levels and the cycle (:func:`mode_cycle`).
+
+The fine operator is the filtered S A S + (I − S) that PCG works with: pinned vertices have no
+modes and keep a zero correction. The cycle is a symmetric positive definite operator, a
+valid CG preconditioner. The pair operator of contact (its off-diagonal blocks, applied
+matrix-free) is not in the matrix and so not in the coarse levels, as in
+:mod:`~clothtool.sim.linalg.multigrid`.
+
+The prolongators depend on the positions where they were built and on nothing a run carries
+from one step to the next, so a resumed run builds the same ones as an uninterrupted run.
+"""
+
+import numpy as np
+from numba import njit
+
+from clothtool.sim.linalg.aggregation import coarsen
+from clothtool.sim.linalg.blocks import BlockPattern
+from clothtool.sim.linalg.filter import PINNED
+from clothtool.sim.linalg.galerkin import galerkin_coarse, galerkin_fine, pinned_mask
+from clothtool.sim.linalg.modes import (M, coarse_prolongator, coarser_sums, fine_prolongator,
+                                        node_frames, node_sums)
+from clothtool.sim.linalg.relaxation import (block_inverses, block_jacobi, cholesky,
+                                             cholesky_solve, forward_from_zero3, gauss_seidel,
+                                             gauss_seidel3)
+
+COARSEST = 16  # nodes at which the hierarchy stops (a dense Cholesky of ≤ 8·16 unknowns)
+COARSE_CYCLES = 2  # V-cycles on the coarse levels per cycle (2: a W-cycle on the first)
+# a vertex whose diagonal block exceeds this many times its inertia floor (a contact barrier near
+# its singularity, up to 1e22) is left to the fine level's exact block inverse: in a coarse block
+# it would bury every other entry below rounding
+STIFF = 1e8
+
+
+def _empty(*shape):
+    return np.zeros(shape)
+
+
+# the layout of ModeMultigrid.modes, without levels (the other preconditioners pass it)
+NO_MODES = (_empty(0, 3, M), np.zeros(0, np.int64), _empty(0, 3, 3), np.zeros(1, np.int64),
+            np.zeros(1, np.int64), np.zeros(1, np.int64), np.zeros(0, np.int64),
+            np.zeros(0, np.int64), _empty(0, M, M), _empty(0, M, M), _empty(0, M, M),
+            np.zeros(0, np.int64), _empty(0, 0), _empty(0, M), _empty(0, M), _empty(0, M),
+            _empty(0, 3))
+
+
+class ModeMultigrid:
+    """The levels of a mesh's mode multigrid, flattened into arrays for numba (:attr:`modes`).
+
+    Level 0 is the matrix pattern; its aggregates follow the triangle graph, the coarser ones
+    each coarse pattern. Coarse level c (c = 0 the first) has nodes node_off[c]:node_off[c+1]
+    of the coarse arrays, blocks block_off[c]:block_off[c+1] and its CSR row pointers at
+    row_off[c] (local indices)."""
+
+    inverse = _empty(0, 3, 3)  # what the other preconditioners pass to PCG
+
+    def __init__(self, pattern, faces):
+        triangles = BlockPattern(pattern.n, faces)
+        levels, maps = coarsen(pattern.row_ptr, pattern.col,
+                               (triangles.row_ptr, triangles.col), COARSEST)
+        if not maps:
+            raise ValueError("the mode multigrid needs a mesh with more than COARSEST vertices")
+        coarse = levels[1:]
+        sizes = [len(rp) - 1 for rp, _ in coarse]
+        self.n = pattern.n
+        self.sizes = sizes
+        self.diag = pattern.diag
+        self.agg0, self.slot0 = maps[0]
+        self.node_off = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
+        self.block_off = np.concatenate([[0], np.cumsum([len(c) for _, c in coarse])]).astype(
+            np.int64)
+        self.row_off = np.concatenate([[0], np.cumsum([s + 1 for s in sizes])]).astype(np.int64)
+        self.row_ptr = np.concatenate([rp for rp, _ in coarse]).astype(np.int64)
+        self.col = np.concatenate([c for _, c in coarse]).astype(np.int64)
+        self.cdiag = [np.searchsorted(self.col[self.block_off[c]:self.block_off[c + 1]]
+                                      + np.repeat(np.arange(n) * n, np.diff(rp)),
+                                      np.arange(n) * (n + 1)).astype(np.int64)
+                      for c, (n, (rp, _)) in enumerate(zip(sizes, coarse))]
+        total = self.node_off[-1]
+        self.cagg = np.concatenate([a for a, _ in maps[1:]] + [np.zeros(sizes[-1], np.int64)])
+        self.cslot = [m for _, m in maps[1:]]
+        self.q0 = np.zeros((pattern.n, 3, M))  # the modes of every free vertex (update)
+        self.q = np.zeros((pattern.n, 3, M))  # those the coarse levels take this solve (setup)
+        self.dinv0 = np.zeros((pattern.n, 3, 3))
+        self.values = np.zeros((self.block_off[-1], M, M))
+        self.dinv = np.zeros((total, M, M))
+        self.transfer = np.zeros((total, M, M))
+        self.coarsest = np.zeros((M * sizes[-1], M * sizes[-1]))
+        self.skip = [np.zeros(s, dtype=np.bool_) for s in sizes]
+        self.modes = (self.q, self.agg0, self.dinv0, self.node_off, self.block_off,
+                       self.row_off, self.row_ptr, self.col, self.values, self.dinv,
+                       self.transfer, self.cagg, self.coarsest, np.zeros((total, M)),
+                       np.zeros((total, M)), np.zeros((total, M)), np.zeros((pattern.n, 3)))
+
+    def _level(self, c):
+        """Coarse level c's (row_ptr, col, values, nodes slice)."""
+        lo, hi = self.node_off[c], self.node_off[c + 1]
+        r0 = self.row_off[c]
+        b0, b1 = self.block_off[c], self.block_off[c + 1]
+        return (self.row_ptr[r0:r0 + hi - lo + 1], self.col[b0:b1], self.values[b0:b1],
+                slice(lo, hi))
+
+    def update(self, x, constraints):
+        """The prolongators at positions x (N, 3): every level's aggregates' modes
+        (:mod:`~clothtool.sim.linalg.modes`)."""
+        free = ~pinned_mask(constraints.kind, constraints.active)
+        count, first, second = node_sums(x, free, self.agg0, self.sizes[0])
+        centroid, radius, frame = node_frames(count, first, second)
+        fine_prolongator(x, free, self.agg0, centroid, radius, frame, self.q0)
+        for c in range(len(self.sizes)):
+            self.skip[c] = count == 0.0
+            if c + 1 == len(self.sizes):
+                break
+            nodes = self._level(c)[3]
+            agg = self.cagg[nodes]
+            sums = coarser_sums(count, first, second, agg, self.sizes[c + 1])
+            geometry = node_frames(*sums)
+            coarse_prolongator(count, centroid, radius, frame, agg, *geometry,
+                               self.transfer[nodes])
+            (count, first, second), (centroid, radius, frame) = sums, geometry
+
+    def setup(self, matrix, constraints):
+        """Per solve: the fine diagonal inverses, every level's Galerkin operator and diagonal
+        inverses, the coarsest level's Cholesky factor. Pinned vertices and those held by a
+        stiff barrier (``STIFF``) take no part in the coarse levels."""
+        held = pinned_mask(constraints.kind, constraints.active) | _stiff(
+            matrix.values, matrix.pattern.diag, matrix.floor)
+        block_jacobi(matrix.values, matrix.pattern.diag, constraints.kind, matrix.floor,
+                     self.dinv0)
+        self.q[:] = self.q0
+        self.q[held] = 0.0
+        galerkin_fine(matrix.row_ptr, matrix.col, matrix.values, held, self.slot0, self.q,
+                      self._level(0)[2])
+        for c in range(len(self.sizes)):
+            level = self._level(c)
+            if c > 0:
+                galerkin_coarse(row_ptr, col, values, skip, slot_map, p, level[2])
+            if c + 1 < len(self.sizes):
+                block_inverses(level[2], self.cdiag[c], self.skip[c], self.dinv[level[3]])
+                row_ptr, col, values = level[:3]
+                skip, slot_map, p = self.skip[c], self.cslot[c], self.transfer[level[3]]
+        _dense(*self._level(len(self.sizes) - 1)[:3], self.coarsest)
+        cholesky(self.coarsest)
+        self.matrix = matrix
+
+    def apply(self, rhs, out):
+        """out = B rhs, one cycle of the matrix of the last :meth:`setup`."""
+        m = self.matrix
+        mode_cycle(rhs, out, m.row_ptr, m.col, m.values, self.modes)
+
+
+def _stiff(values, diag, floor):
+    """The vertices whose diagonal block's trace exceeds ``STIFF`` times 3·floor."""
+    trace = np.einsum("vii->v", values[diag])
+    return (floor > 0.0) & (trace > 3.0 * STIFF * floor)
+
+
+@njit(cache=True)
+def _dense(row_ptr, col, values, out):
+    """out = the level's block matrix as a dense array."""
+    m = values.shape[1]
+    out[:, :] = 0.0
+    for i in range(row_ptr.shape[0] - 1):
+        for s in range(row_ptr[i], row_ptr[i + 1]):
+            j = col[s]
+            for p in range(m):
+                for q in range(m):
+                    out[m * i + p, m * j + q] = values[s, p, q]
+
+
+@njit(cache=True)
+def _residual(row_ptr, col, values, r, x, out):
+    """out = r − A x for a coarse level (blocks of any size)."""
+    b = x.shape[1]
+    for i in range(x.shape[0]):
+        for p in range(b):
+            out[i, p] = r[i, p]
+        for s in range(row_ptr[i], row_ptr[i + 1]):
+            a = values[s]
+            j = col[s]
+            for p in range(b):
+                v = 0.0
+                for q in range(b):
+                    v += a[p, q] * x[j, q]
+                out[i, p] -= v
+
+
+@njit(cache=True)
+def _restrict(p, agg, src, dst):
+    """dst[agg[i]] += p[i]ᵀ src[i] (Pᵀ), dst zeroed first."""
+    dst[:, :] = 0.0
+    b, m = p.shape[1], p.shape[2]
+    for i in range(src.shape[0]):
+        a = agg[i]
+        for c in range(m):
+            v = 0.0
+            for r in range(b):
+                v += p[i, r, c] * src[i, r]
+            dst[a, c] += v
+
+
+@njit(cache=True)
+def _prolong(p, agg, src, dst):
+    """dst[i] += p[i] src[agg[i]] (P)."""
+    b, m = p.shape[1], p.shape[2]
+    for i in range(dst.shape[0]):
+        a = agg[i]
+        for r in range(b):
+            v = 0.0
+            for c in range(m):
+                v += p[i, r, c] * src[a, c]
+            dst[i, r] += v
+
+
+@njit(cache=True)
+def _coarse_vcycle(mg, r, z, t):
+    """z = a V-cycle on the coarse levels for right-hand side r on the first of them."""
+    (_, _, _, node_off, block_off, row_off, c_row_ptr, c_col, c_values, c_dinv,
+     transfer, c_agg, coarsest) = mg[:13]
+    levels = node_off.shape[0] - 1
+    for c in range(levels - 1):  # down: pre-smooth, restrict the residual
+        lo, hi = node_off[c], node_off[c + 1]
+        rp = c_row_ptr[row_off[c]:row_off[c] + hi - lo + 1]
+        cl, vals = c_col[block_off[c]:block_off[c + 1]], c_values[block_off[c]:block_off[c + 1]]
+        z[lo:hi] = 0.0
+        gauss_seidel(rp, cl, vals, c_dinv[lo:hi], r[lo:hi], z[lo:hi], True)
+        _residual(rp, cl, vals, r[lo:hi], z[lo:hi], t[lo:hi])
+        _restrict(transfer[lo:hi], c_agg[lo:hi], t[lo:hi], r[hi:node_off[c + 2]])
+    last = levels - 1
+    cholesky_solve(coarsest, r[node_off[last]:node_off[last + 1]],
+                   z[node_off[last]:node_off[last + 1]])
+    for c in range(levels - 2, -1, -1):  # up: prolong the correction, post-smooth
+        lo, hi = node_off[c], node_off[c + 1]
+        rp = c_row_ptr[row_off[c]:row_off[c] + hi - lo + 1]
+        cl, vals = c_col[block_off[c]:block_off[c + 1]], c_values[block_off[c]:block_off[c + 1]]
+        _prolong(transfer[lo:hi], c_agg[lo:hi], z[hi:node_off[c + 2]], z[lo:hi])
+        gauss_seidel(rp, cl, vals, c_dinv[lo:hi], r[lo:hi], z[lo:hi], False)
+
+
+@njit(cache=True)
+def mode_cycle(rhs, out, row_ptr, col, values, mg):
+    """out = B rhs: a forward block Gauss–Seidel sweep, the coarse correction, a backward sweep;
+    the first coarse level is solved by ``COARSE_CYCLES`` V-cycles (each a sweep before and
+    after its own coarse correction, the coarsest level by its Cholesky factor)."""
+    q0, agg0, dinv0, node_off, block_off, row_off, c_row_ptr, c_col, c_values = mg[:9]
+    r, z, t, t0 = mg[13:]
+    forward_from_zero3(row_ptr, col, values, dinv0, rhs, out, t0)
+    lo, hi = node_off[0], node_off[1]
+    _restrict(q0, agg0, t0, r[lo:hi])
+    _coarse_vcycle(mg, r, z, t)
+    if COARSE_CYCLES > 1 and node_off.shape[0] > 2:
+        first = r[lo:hi].copy()
+        correction = z[lo:hi].copy()
+        rp = c_row_ptr[row_off[0]:row_off[0] + hi - lo + 1]
+        cl, vals = c_col[block_off[0]:block_off[1]], c_values[block_off[0]:block_off[1]]
+        for _ in range(COARSE_CYCLES - 1):
+            _residual(rp, cl, vals, first, correction, r[lo:hi])
+            _coarse_vcycle(mg, r, z, t)
+            correction += z[lo:hi]
+        z[lo:hi] = correction
+    _prolong(q0, agg0, z[lo:hi], out)
+    gauss_seidel3(row_ptr, col, values, dinv0, rhs, out, False)

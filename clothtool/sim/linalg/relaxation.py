@@ -1,0 +1,200 @@
+"""Block Gauss–Seidel relaxation, the smoother of the mode multigrid, and its diagonal inverses.
+
+A sweep visits the block rows in order (``forward``) or in reverse and sets each node's
+unknowns so that its row of A x = r holds: x_i = D_i⁻¹ (r_i − Σ_{j≠i} A_ij x_j), D_i the diagonal
+block (never multiplied by x_i, so a contact barrier's block of 1e22 × the inertia adds no
+rounding) (Saad, "Iterative Methods for Sparse Linear Systems", §4.1; block form as pyamg's
+``block_gauss_seidel``). A forward sweep before the coarse correction and a backward one after
+it make the V-cycle a symmetric operator, so it preconditions CG; Gauss–Seidel converges for
+every symmetric positive definite A, so no damping weight or spectral estimate is needed.
+
+Nodes whose inverse block is zero (pinned vertices, coarse nodes with no free vertex) keep
+their unknowns: with a filtered right-hand side those stay zero, as the filter wants.
+"""
+
+import numpy as np
+from numba import njit
+
+from clothtool.sim.linalg.filter import PINNED
+from clothtool.sim.linalg.modes import M
+from clothtool.vec3 import spd_inverse3
+
+PIVOT = 1e-12  # smallest Cholesky pivot relative to its diagonal entry
+
+
+@njit(cache=True)
+def gauss_seidel(row_ptr, col, values, diag_inv, r, x, forward):
+    """One block Gauss–Seidel sweep on A x = r, x (n, M) updated in place (a coarse level);
+    ``diag_inv`` the inverses of the diagonal blocks (zero: the node keeps zero)."""
+    n = x.shape[0]
+    b = M
+    t = np.empty(M)
+    for step in range(n):
+        i = step if forward else n - 1 - step
+        for p in range(b):
+            t[p] = r[i, p]
+        for s in range(row_ptr[i], row_ptr[i + 1]):
+            j = col[s]
+            if j == i:
+                continue
+            a = values[s]
+            for p in range(b):
+                v = 0.0
+                for q in range(b):
+                    v += a[p, q] * x[j, q]
+                t[p] -= v
+        d = diag_inv[i]
+        for p in range(b):
+            v = 0.0
+            for q in range(b):
+                v += d[p, q] * t[q]
+            x[i, p] = v
+
+
+@njit(cache=True)
+def cholesky(a):
+    """In-place Cholesky factor (lower triangle) of a symmetric positive semi-definite matrix.
+
+    A pivot that rounding (or a mode with no support: a zero row and column) has made
+    non-positive is replaced by the matrix's own diagonal entry, or 1 where that is zero: the
+    factor is then that of A + E with E ≥ 0 diagonal, still a valid SPD preconditioner, and an
+    unknown with no support stays uncoupled."""
+    n = a.shape[0]
+    for j in range(n):
+        diagonal = a[j, j]
+        d = diagonal
+        for k in range(j):
+            d -= a[j, k] * a[j, k]
+        if not d > PIVOT * diagonal:
+            d = diagonal if diagonal > 0.0 else 1.0
+        d = np.sqrt(d)
+        a[j, j] = d
+        for i in range(j + 1, n):
+            s = a[i, j]
+            for k in range(j):
+                s -= a[i, k] * a[j, k]
+            a[i, j] = s / d
+
+
+@njit(cache=True)
+def cholesky_solve(lower, r, z):
+    """z = A⁻¹ r with A = L Lᵀ (L from :func:`cholesky`), for (n, b) arrays flattened
+    row-major."""
+    b = r.shape[1]
+    n = r.shape[0] * b
+    y = np.empty(n)
+    for i in range(n):
+        s = r[i // b, i % b]
+        for k in range(i):
+            s -= lower[i, k] * y[k]
+        y[i] = s / lower[i, i]
+    for i in range(n - 1, -1, -1):
+        s = y[i]
+        for k in range(i + 1, n):
+            s -= lower[k, i] * y[k]
+        y[i] = s / lower[i, i]
+    for i in range(n):
+        z[i // b, i % b] = y[i]
+
+
+@njit(cache=True)
+def block_inverses(values, diag, skip, out):
+    """out[i] = D_i⁻¹ for the diagonal block of every node (zero for nodes with ``skip``),
+    through :func:`cholesky` (so a block with an unsupported mode is inverted on the rest)."""
+    m = out.shape[1]
+    work = np.empty((m, m))
+    for i in range(out.shape[0]):
+        out[i] = 0.0
+        if skip[i]:
+            continue
+        work[:, :] = values[diag[i]]
+        cholesky(work)
+        for c in range(m):  # column c of the inverse: L⁻ᵀ L⁻¹ e_c
+            y = np.zeros(m)
+            for r in range(m):
+                s = 1.0 if r == c else 0.0
+                for k in range(r):
+                    s -= work[r, k] * y[k]
+                y[r] = s / work[r, r]
+            for r in range(m - 1, -1, -1):
+                s = y[r]
+                for k in range(r + 1, m):
+                    s -= work[k, r] * y[k]
+                y[r] = s / work[r, r]
+            for r in range(m):
+                out[i, r, c] = y[r]
+
+
+@njit(cache=True)
+def block_jacobi(values, diag, kind, floor, inv):
+    """inv = inverses of the diagonal blocks (zero for pinned vertices), each with its
+    eigenvalues at least floor[v] (:func:`~clothtool.vec3.spd_inverse3`)."""
+    for i in range(diag.shape[0]):
+        if kind[i] != PINNED:
+            spd_inverse3(values[diag[i]], floor[i], inv[i])
+        else:
+            inv[i] = 0.0
+
+
+@njit(cache=True)
+def gauss_seidel3(row_ptr, col, values, diag_inv, r, x, forward):
+    """:func:`gauss_seidel` for 3×3 blocks, unrolled (the fine level)."""
+    n = x.shape[0]
+    for step in range(n):
+        i = step if forward else n - 1 - step
+        t0, t1, t2 = r[i, 0], r[i, 1], r[i, 2]
+        for s in range(row_ptr[i], row_ptr[i + 1]):
+            j = col[s]
+            if j == i:
+                continue
+            a = values[s]
+            x0, x1, x2 = x[j, 0], x[j, 1], x[j, 2]
+            t0 -= a[0, 0] * x0 + a[0, 1] * x1 + a[0, 2] * x2
+            t1 -= a[1, 0] * x0 + a[1, 1] * x1 + a[1, 2] * x2
+            t2 -= a[2, 0] * x0 + a[2, 1] * x1 + a[2, 2] * x2
+        d = diag_inv[i]
+        x[i, 0] = d[0, 0] * t0 + d[0, 1] * t1 + d[0, 2] * t2
+        x[i, 1] = d[1, 0] * t0 + d[1, 1] * t1 + d[1, 2] * t2
+        x[i, 2] = d[2, 0] * t0 + d[2, 1] * t1 + d[2, 2] * t2
+
+
+@njit(cache=True)
+def forward_from_zero3(row_ptr, col, values, diag_inv, r, x, res):
+    """A forward :func:`gauss_seidel3` sweep from x = 0 and the residual res = r − A x after it,
+    in about one pass over the blocks instead of two: the sweep reads only the blocks left of
+    and on the diagonal (the others multiply zeros), and row i's residual is what the sweep
+    left of it, t_i − A_ii x_i, minus the blocks right of the diagonal, which the second loop
+    adds once x is complete."""
+    n = x.shape[0]
+    for i in range(n):
+        t0, t1, t2 = r[i, 0], r[i, 1], r[i, 2]
+        s = row_ptr[i]
+        while s < row_ptr[i + 1] and col[s] < i:
+            a = values[s]
+            j = col[s]
+            x0, x1, x2 = x[j, 0], x[j, 1], x[j, 2]
+            t0 -= a[0, 0] * x0 + a[0, 1] * x1 + a[0, 2] * x2
+            t1 -= a[1, 0] * x0 + a[1, 1] * x1 + a[1, 2] * x2
+            t2 -= a[2, 0] * x0 + a[2, 1] * x1 + a[2, 2] * x2
+            s += 1
+        d = diag_inv[i]
+        y0 = d[0, 0] * t0 + d[0, 1] * t1 + d[0, 2] * t2
+        y1 = d[1, 0] * t0 + d[1, 1] * t1 + d[1, 2] * t2
+        y2 = d[2, 0] * t0 + d[2, 1] * t1 + d[2, 2] * t2
+        x[i, 0], x[i, 1], x[i, 2] = y0, y1, y2
+        a = values[s]  # the diagonal block: D⁻¹ may differ from its inverse (a floor, rounding)
+        res[i, 0] = t0 - (a[0, 0] * y0 + a[0, 1] * y1 + a[0, 2] * y2)
+        res[i, 1] = t1 - (a[1, 0] * y0 + a[1, 1] * y1 + a[1, 2] * y2)
+        res[i, 2] = t2 - (a[2, 0] * y0 + a[2, 1] * y1 + a[2, 2] * y2)
+    for i in range(n):
+        t0, t1, t2 = res[i, 0], res[i, 1], res[i, 2]
+        for s in range(row_ptr[i + 1] - 1, row_ptr[i] - 1, -1):
+            j = col[s]
+            if j <= i:
+                break
+            a = values[s]
+            x0, x1, x2 = x[j, 0], x[j, 1], x[j, 2]
+            t0 -= a[0, 0] * x0 + a[0, 1] * x1 + a[0, 2] * x2
+            t1 -= a[1, 0] * x0 + a[1, 1] * x1 + a[1, 2] * x2
+            t2 -= a[2, 0] * x0 + a[2, 1] * x1 + a[2, 2] * x2
+        res[i, 0], res[i, 1], res[i, 2] = t0, t1, t2
