@@ -593,7 +593,7 @@ def sweep(base, output, grid, zipped, random, ranges, seed, settings, jobs, slur
 
 FIT_EPILOG = """\b
 Examples:
-  clothtool fit sample_data/strip.yaml --target sample_data/strip_capture \\
+  clothtool fit sample_data/strip.yaml --target sample_data/strip/capture \\
         --range material.bend=1e-6:1e-3:log --range material.damping=1e-3:0.1:log -o fit/
       the bending and damping that make the strip fall as the capture did
   clothtool fit sheet.yaml --target 'scan/*.ply' --range material.stretch=1e3:1e5:log \\
@@ -628,13 +628,16 @@ OPTIONS.update({"capture": "--target", "compare": "--compare", "outliers": "--ou
 @click.option("--outliers", type=float, default=None, metavar="DIST",
               help="Metres beyond which a residual counts less and less (Cauchy loss): stray "
                    "points of a scan do not pull the fit.")
+@click.option("--register/--no-register", default=True, show_default=True,
+              help="Move the capture rigidly so that its frame 0 lies nearest the config's "
+                   "initial state (a capture in another frame, or slightly off).")
 @click.option("--max-simulations", default=40, show_default=True, type=int,
               help="Stop after this many simulations with the best so far.")
 @click.option("--compare-strain", is_flag=True,
               help="Also analyse the capture and the fit (against their first frames) and "
                    "report the per-triangle stretch difference.")
 @QUIET
-def fit(config, target, ranges, output, settings, jobs, slurm, compare, outliers,
+def fit(config, target, ranges, output, settings, jobs, slurm, compare, outliers, register,
         max_simulations, compare_strain, quiet):
     """Fit material values so that the simulation of CONFIG moves as a captured sequence
     did (scipy's trust-region least squares, finite-difference Jacobian in log space).
@@ -647,7 +650,8 @@ def fit(config, target, ranges, output, settings, jobs, slurm, compare, outliers
 
     with runs_bar(quiet, slurm, "fit") as bar:
         result = run_fit(config, list(target), list(ranges), output, settings=list(settings),
-                         compare=compare, outliers=outliers, jobs=jobs, slurm=slurm,
+                         compare=compare, outliers=outliers, register=register, jobs=jobs,
+                         slurm=slurm,
                          max_simulations=max_simulations, compare_strain=compare_strain,
                          on_done=bar and (lambda r, s: bar.update()),
                          log=None if quiet else (

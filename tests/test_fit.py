@@ -3,6 +3,7 @@ small clamped strip, the uncertainty of a linear problem, bad input, resume, Slu
 
 import csv
 import json
+import math
 import os
 import signal
 import subprocess
@@ -27,6 +28,8 @@ from clothtool.sweeps import fit_runs
 CLOTHTOOL = [sys.executable, "-m", "clothtool.cli"]
 TRUE = {"material.bend": 4.0e-5, "material.damping": 0.02}
 RANGES = ["material.bend=1e-6:1e-3:log", "material.damping=1e-3:0.1:log"]
+TILT = np.array([[1.0, 0.0, 0.0], [0.0, math.cos(0.01745), -math.sin(0.01745)],
+                 [0.0, math.sin(0.01745), math.cos(0.01745)]])  # 1° about x
 
 # a 10 cm × 4 cm strip clamped at x = 0 (two columns), released horizontal: it falls and swings
 STRIP = """\
@@ -99,8 +102,10 @@ def test_a_clean_capture_gives_back_its_values(strip_case, tmp_path):
 
 def test_the_same_capture_on_another_mesh_is_compared_surface_to_surface(strip_case, tmp_path):
     """The capture as another mesh: the midpoints of the simulated mesh's edges, joined in the
-    triangles of each face's midpoints. No correspondence is assumed: each captured point is
-    measured to the simulated surface, on which it lies at the true values, so they come back."""
+    triangles of each face's midpoints, tilted 1° about x and 2 mm low. No correspondence is
+    assumed: the capture is moved onto the initial surface by iterative closest points, each
+    captured point measured to the simulated surface, on which it lies at the true values, so
+    they come back."""
     config, capture = strip_case
     other = tmp_path / "other"
     other.mkdir()
@@ -113,13 +118,39 @@ def test_the_same_capture_on_another_mesh_is_compared_surface_to_surface(strip_c
         mid = np.array([(mesh.vertices[a] + mesh.vertices[b]) / 2 for a, b in edges])
         faces = [[edges[(min(a, b), max(a, b))] for a, b in ((f[0], f[1]), (f[1], f[2]), (f[2], f[0]))]
                  for f in mesh.faces]
-        write_ply(other / Path(path).name, mid, np.array(faces, np.int64))
+        write_ply(other / Path(path).name, (mid - [0.0, 0.0, 2e-3]) @ TILT.T,
+                  np.array(faces, np.int64))
     result = clothtool.fit(config, other, RANGES, tmp_path / "fit", compare_strain=True)
     assert result.mode == "surface" and result.points == len(mid)
+    assert result.offset0 > 2e-3 and result.offset0_left < 1e-6  # tilted and lowered: moved back
     assert "other meshes" in result.strain["line"]
     for key, true in TRUE.items():
         assert result.values[key] == pytest.approx(true, rel=1e-3), key
     assert result.rms < 1e-6
+
+
+def test_a_capture_that_starts_off_is_moved_onto_the_initial_state(strip_case, tmp_path):
+    """The capture turned 2° about z and 1 mm off along x in every frame (another frame, a
+    registration error): it is moved rigidly onto the config's initial state before the fit,
+    which says so and gives the values back; compared where it lies, the millimetre would be
+    taken for a stiffer material."""
+    config, capture = strip_case
+    turned = tmp_path / "turned"
+    turned.mkdir()
+    c, s = math.cos(math.radians(2.0)), math.sin(math.radians(2.0))
+    rotation = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    for path in discover_frames(capture):
+        mesh = read_mesh(path)
+        write_ply(turned / Path(path).name, mesh.vertices @ rotation.T + [1e-3, 0.0, 0.0],
+                  mesh.faces)
+    lines = []
+    result = clothtool.fit(config, turned, RANGES, tmp_path / "fit", log=lines.append)
+    assert "once moved rigidly onto it (by 1 mm and 2°)" in lines[0], lines[0]
+    assert result.offset0 > 1e-3 and result.offset0_left < 1e-9
+    for key, true in TRUE.items():
+        assert result.values[key] == pytest.approx(true, rel=1e-3), key
+    where = clothtool.fit(config, turned, RANGES, tmp_path / "where", register=False)
+    assert abs(where.values["material.bend"] / TRUE["material.bend"] - 1) > 0.1
 
 
 def test_stray_points_pull_the_fit_less_with_outliers(strip_case, tmp_path):
@@ -203,6 +234,35 @@ def _fake_simulations(monkeypatch, residual, m):
 
     monkeypatch.setattr(api, "sweep", fake_sweep)
     monkeypatch.setattr(fit_runs.FitRuns, "_residual_of", fake_residual)
+
+
+def test_the_bundled_capture_is_the_strip_at_its_stated_values(tmp_path):
+    """sample_data/strip: the script's scene, and the capture within its noise (0.3 mm per
+    coordinate: 0.52 mm RMS distance) of the strip the simulator gives today at bend 4e-5 and
+    damping 0.02; if the simulator moves it further, regenerate it with
+    scripts/make_strip_capture.py."""
+    import importlib.util
+
+    root = Path(__file__).resolve().parents[1]
+    spec = importlib.util.spec_from_file_location("make_strip_capture",
+                                                  root / "scripts" / "make_strip_capture.py")
+    script = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(script)
+    config = script.write_scene(tmp_path)
+    assert config.read_text() == (root / "sample_data" / "strip.yaml").read_text()
+    ours = read_mesh(tmp_path / "strip" / "strip.ply")
+    committed = read_mesh(root / "sample_data" / "strip" / "strip.ply")
+    assert np.array_equal(ours.faces, committed.faces)
+    assert np.abs(ours.vertices - committed.vertices).max() < 1e-12
+    run = clothtool.simulate(root / "sample_data" / "strip.yaml", output_dir=tmp_path / "sim",
+                             progress=False,
+                             overrides=["material.bend=4e-5", "material.damping=0.02"])
+    frames = discover_frames(run.output_dir)
+    capture = discover_frames(root / "sample_data" / "strip" / "capture")
+    assert len(frames) == len(capture) == 46
+    d = np.stack([np.linalg.norm(read_mesh(a).vertices - read_mesh(b).vertices, axis=1)
+                  for a, b in zip(frames[1:], capture[1:])])
+    assert 0.48e-3 < np.sqrt(np.mean(d ** 2)) < 0.55e-3
 
 
 # ------------------------------------------------------------------------------ surface distance
