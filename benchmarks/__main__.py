@@ -19,8 +19,9 @@ import sys
 import time
 
 # Run only under --full or when named: the peers take minutes each (Newton's twist alone
-# about 5 minutes of CPU) and need their own venvs; the fits run hundreds of simulations.
-FULL_ONLY = ("bench_peers", "bench_fit")
+# about 5 minutes of CPU) and need their own venvs; the fits run hundreds of simulations;
+# drape_mesh runs the Cusick test some sixty times (4 mm discs included).
+FULL_ONLY = ("bench_peers", "bench_fit", "bench_drape_mesh")
 
 
 def main(argv):

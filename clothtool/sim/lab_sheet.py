@@ -10,7 +10,7 @@ from clothtool.errors import InputError
 from clothtool.lab_units import KES_B, bending_length, to_lab
 
 SI_KEYS = ("density", "stretch", "rest_stretch", "shear", "bend", "damping", "bend_model",
-           "damping_model", "membrane_model")
+           "damping_model", "membrane_model", "plate_correction")
 
 
 def simulated_drape(material, spacing=0.01):

@@ -102,10 +102,11 @@ def _write_scene(material, root):
     from clothtool.sim.textile import CUSICK, CUSICK_DAMPING, disc
 
     radius, pedestal = CUSICK
-    uv, faces = disc(radius, SPACING, "grid", seed=1)
+    uv, faces = disc(radius, SPACING, "grid", seed=1, clamp=pedestal)
+    edge = pedestal + SPACING / 2  # the outer pinned ring (cusick_drape's clamp)
     r, phi = np.hypot(uv[:, 0], uv[:, 1]), np.arctan2(uv[:, 1], uv[:, 0])
     x = np.concatenate([uv, np.zeros((len(uv), 1))], axis=1)
-    x[:, 2] = -0.002 * np.clip(r - pedestal, 0.0, None) / (radius - pedestal) * np.cos(6 * phi)
+    x[:, 2] = -0.002 * np.clip(r - edge, 0.0, None) / (radius - edge) * np.cos(6 * phi)
     root.mkdir(parents=True, exist_ok=True)
     write_ply(root / "disc.ply", x, faces,
               vertex_properties={"s": uv[:, 0].copy(), "t": uv[:, 1].copy()})
@@ -114,7 +115,7 @@ def _write_scene(material, root):
     keys["damping"] = CUSICK_DAMPING
     config = {"mesh": {"ply": "disc.ply"}, "material": keys,
               "scene": {"gravity": [0.0, 0.0, -9.81],
-                        "pins": [int(v) for v in np.flatnonzero(r <= pedestal + 1e-9)]},
+                        "pins": [int(v) for v in np.flatnonzero(r <= edge + 1e-9)]},
               "solver": {"tolerance": 1e-3},
               "time": {"fps": FPS, "frames": int(SECONDS * FPS)},
               "output": {"every": int(SECONDS * FPS)}}

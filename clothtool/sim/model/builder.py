@@ -253,18 +253,21 @@ class ModelBuilder:
         if len(self.stitches) and not self.sewing.gravity:
             gravity = np.zeros(3)  # sewn without gravity (mesh.sewing.gravity)
         bend_model, hinge, hinge_faces, rest_angle, coef, weights = self._bending()
-        plate = None
+        plate = plate_matrix = None
         if bend_model == "hessian":
-            from clothtool.sim.energies.plate import hessian_bending_matrix
+            from clothtool.sim.energies.plate import SHARPEN, plate_matrices
 
             uv = mesh.uv if mesh.uv is not None else _plane_pattern(mesh.rest3d)
             rigidity, anisotropy = self._plate_rigidity()
-            q = hessian_bending_matrix(uv, faces, self._per_vertex(rigidity), anisotropy, pinned)
-            plate = (q.indptr.astype(np.int64), q.indices.astype(np.int64), q.data)
+            q, correction = plate_matrices(
+                uv, faces, self._per_vertex(rigidity), anisotropy, pinned,
+                sharpen=SHARPEN if self.material.plate_correction else 0.0)
+            plate = _csr(q if correction is None else q + correction)
+            plate_matrix = None if correction is None else _csr(q)
         membrane_model = self._membrane_model()
         terms = _elastic_terms(faces, dr_inv, self.area, self.tri_stretch, self.tri_shear,
                                bend_model, plate, n, hinge, rest_angle, coef, weights,
-                               membrane_model)
+                               membrane_model, plate_matrix)
         if len(self.stitches):
             terms.append(Stitch(self.stitches, self.stitch_stiffness.copy()))
         beta = self.tri_damping
@@ -274,7 +277,8 @@ class ModelBuilder:
         if strain and plate is not None:
             # the plate's strain (the Hessian of x over its pattern) is linear in x: its
             # dissipation potential has the plate's own matrix, β k_b Q
-            plate_damping = self._damped_plate(plate, q, uv, rigidity, anisotropy, pinned)
+            plate_damping = self._damped_plate(plate_matrix or plate, q, uv, rigidity, anisotropy,
+                                               pinned)
         elif strain and len(hinge):  # the bending dissipation's hinges in the matrix too
             bend_damping = coef * beta[hinge_faces].mean(axis=1)
             elements.append(hinge)
@@ -292,7 +296,8 @@ class ModelBuilder:
             scaled[:, :2] *= beta[:, None]
             damped_plate = None
             if plate is not None:
-                damped_plate = self._damped_plate(plate, q, uv, rigidity, anisotropy, pinned)
+                damped_plate = self._damped_plate(plate_matrix or plate, q, uv, rigidity,
+                                                   anisotropy, pinned)
             damping_terms = _elastic_terms(faces, dr_inv, self.area, scaled,
                                            self.tri_shear * beta, bend_model, damped_plate, n,
                                            hinge, rest_angle,
@@ -408,9 +413,16 @@ class ModelBuilder:
         return model, hinge, hinge_faces, rest_angle, coef, weights
 
 
+def _csr(q):
+    """(ptr, col, val) of a scipy CSR matrix, int64 indices."""
+    return q.indptr.astype(np.int64), q.indices.astype(np.int64), q.data
+
+
 def _elastic_terms(faces, dr_inv, area, stretch, shear, bend_model, plate, n, hinge, rest_angle,
-                   coef, weights, membrane_model="triangle"):
-    """The membrane and bending terms (none whose stiffness is zero)."""
+                   coef, weights, membrane_model="triangle", plate_matrix=None):
+    """The membrane and bending terms (none whose stiffness is zero); ``plate_matrix``: the
+    plate's Hessian in the solver's matrix when it is not ``plate`` itself (the corrected
+    plate: :class:`~clothtool.sim.energies.terms.PlateBending`)."""
     terms = []
     if membrane_model == "nodal":  # stretch on the vertices' smoothed metric, shear per triangle
         if np.any(stretch[:, :2] > 0.0):
@@ -422,7 +434,7 @@ def _elastic_terms(faces, dr_inv, area, stretch, shear, bend_model, plate, n, hi
     elif np.any(stretch[:, :2] > 0.0) or np.any(shear > 0.0):
         terms.append(Membrane(faces, dr_inv, area, stretch, shear))
     if bend_model == "hessian":
-        terms.append(PlateBending(plate, n))
+        terms.append(PlateBending(plate, n, plate_matrix))
     elif bend_model == "dihedral":
         terms.append(DihedralBending(hinge, rest_angle, coef))
     elif bend_model == "quadratic":

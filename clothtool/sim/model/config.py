@@ -277,6 +277,11 @@ class Material(Section):
                                                    "bending length c (or `[warp, weft]`), "
                                                    "`bend` = `density` · 9.81 · c³ (giving "
                                                    "both is an error)")
+    plate_correction: bool = setting(False, flag,
+                                     "`hessian` bending: correct the smoothing of each vertex's "
+                                     "Hessian estimate (a fourth-order term, β h²‖∇Ĥ‖²), so that "
+                                     "folds a few triangles wide keep their bending energy on a "
+                                     "coarse mesh ([Textile units](#textile-units-and-tests))")
     membrane_model: str = setting("triangle", choice(MEMBRANE_MODELS),
                                   "`triangle` (stretch and shear per linear triangle) or "
                                   "`nodal`: warp and weft stretch on each vertex's smoothed "
