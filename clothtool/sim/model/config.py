@@ -253,7 +253,8 @@ class Material(Section):
                                   "edge) ([Textile units](#textile-units-and-tests)); 0 turns "
                                   "bending off")
     damping: float = setting(0.01, non_negative,
-                             "s, stiffness-proportional (Rayleigh) damping; 0 = none")
+                             "s, β of the damping (`damping_model`: of the strains' change, "
+                             "or stiffness-proportional); 0 = none")
     bend_model: str = setting("hessian", choice(BEND_MODELS),
                               "`hessian` (plate bending with the stated rigidity on any mesh "
                               "that rests flat, with or without uv, panels of their own bend "
