@@ -207,6 +207,29 @@ def test_two_values_the_capture_cannot_tell_apart_are_said_so(tmp_path, monkeypa
     assert "are told apart only in combination" in result.describe()
 
 
+def test_a_scan_starts_the_fit_in_the_right_valley(tmp_path, monkeypatch):
+    """A residual with a local minimum near x = −0.95 and the global one at x = 1, x the
+    damping's log across its range mapped to [−2, 2]: from the config's 0.006 (x = −0.44) the fit
+    ends in the local minimum; with scan=4 it starts from the best of 4 values and finds x = 1."""
+    def residual(values):
+        x = 4.0 * math.log(values[0] / 1e-3) / math.log(100.0) - 2.0
+        return np.array([(x + 1.0) * (x - 1.0), 0.3 * (x - 1.0)]) * 1e-3
+
+    _fake_simulations(monkeypatch, residual, 2)
+    config = write_strip(tmp_path)
+    capture = make_capture(config, tmp_path / "capture")
+    global_min = 1e-3 * 100.0 ** 0.75
+    local = clothtool.fit(config, capture, RANGES[1:], tmp_path / "local")
+    assert local.values["material.damping"] < 0.5 * global_min
+    scanned = clothtool.fit(config, capture, RANGES[1:], tmp_path / "scanned", scan=4)
+    assert scanned.values["material.damping"] == pytest.approx(global_min, rel=1e-3)
+    rows = read_csv(tmp_path / "scanned" / "fit.csv")
+    assert [float(r["material.damping"]) for r in rows[:4]] == pytest.approx(
+        [1e-3 * 100.0 ** ((k + 0.5) / 4) for k in range(4)], rel=1e-12)
+    with pytest.raises(InputError, match=r"^scan=7: 7\^1 = 7 simulations, more than the budget"):
+        clothtool.fit(config, capture, RANGES[1:], tmp_path / "x", scan=7, max_simulations=6)
+
+
 def _fake_simulations(monkeypatch, residual, m):
     """Every simulation replaced by ``residual(values)`` (m numbers, padded with zeros to the
     capture's size), each run marked done at once."""
