@@ -129,6 +129,18 @@ def test_the_same_capture_on_another_mesh_is_compared_surface_to_surface(strip_c
     assert result.rms < 1e-6
 
 
+def test_a_fit_in_a_terminal_counts_its_simulations_on_a_bar(strip_case, tmp_path, monkeypatch):
+    import clothtool.cli as cli
+
+    monkeypatch.setattr(cli, "_progress_enabled", lambda quiet: not quiet)
+    config, capture = strip_case
+    out = CliRunner().invoke(main, ["fit", str(config), "--target", str(capture), *RANGES_ARGS,
+                                    "-o", str(tmp_path / "fit")])
+    assert out.exit_code == 0, out.output
+    assert "fit: 3run [" in out.output and "iteration 1:" in out.output
+    assert "material.bend    = 4e-05" in out.output or "material.bend    = 4.0000" in out.output
+
+
 def test_a_capture_that_starts_off_is_moved_onto_the_initial_state(strip_case, tmp_path):
     """The capture turned 2° about z and 1 mm off along x in every frame (another frame, a
     registration error): it is moved rigidly onto the config's initial state before the fit,
