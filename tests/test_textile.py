@@ -159,15 +159,16 @@ def test_a_uniform_bend_or_twist_stores_the_same_energy_in_every_direction(kind)
 @settings(max_examples=40, deadline=None)
 @given(nx=st.integers(3, 12), ny=st.integers(3, 12), cell=st.floats(0.001, 0.2),
        aspect=st.floats(0.25, 4.0),
-       hessian=st.tuples(*[st.floats(-50.0, 50.0)] * 3), slope=st.tuples(*[st.floats(-5.0, 5.0)] * 3),
+       hessian=st.tuples(*[st.floats(-50.0, 50.0)] * 3),
+       slope=st.tuples(*[st.floats(-5.0, 5.0)] * 3),
        angles=st.tuples(*[st.floats(-3.1, 3.1)] * 3))
 def test_a_quadratic_field_on_a_grid_stores_exactly_its_energy(nx, ny, cell, aspect, hessian,
                                                                 slope, angles):
     """Patch test: x = R (u, v, ½ uᵀHu + a·u + c) on clothtool's grid of any size (three
     vertices or more each way: a single row of quads has no curvature across it) and cells
-    of aspect 1:4 to 4:1, free edges and corners included: W = ½‖H‖²_F A to rounding (Q is calibrated to be exact on
-    quadratics at every vertex, and every direction a vertex cannot see is handed whole to a
-    neighbour that sees it)."""
+    of aspect 1:4 to 4:1, free edges and corners included: W = ½‖H‖²_F A to rounding (Q is
+    calibrated to be exact on quadratics at every vertex, and every direction a vertex cannot
+    see is handed whole to a neighbour that sees it)."""
     from clothtool.geometry import grid_triangles, grid_uv
 
     size = (cell * (nx - 1), cell * aspect * (ny - 1))

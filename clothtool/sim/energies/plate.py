@@ -31,9 +31,9 @@ twist and saddle for free). Q is built once from the rest pattern:
    weak Hessian sees no curvature across a free edge, and the boundary's half-cells get it
    from the vertices one row in. (Handing none over, "no moment across a free edge", left
    those half-cells without it: a uniform bend of a free 6 × 6 grid came out 17 % soft,
-   12 × 12 9 %, 24 × 24 4 %: a plate softer on a coarse mesh than on a fine one.) Only a clamp, a boundary edge with both ends held, hands
-   nothing across itself: the cloth is held flat there. A_v are mixed Voronoi areas (Meyer
-   et al. 2003).
+   12 × 12 9 %, 24 × 24 4 %: a plate softer on a coarse mesh than on a fine one.) Only a
+   clamp, a boundary edge with both ends held, hands nothing across itself: the cloth is
+   held flat there. A_v are mixed Voronoi areas (Meyer et al. 2003).
 
     W_bend = k_b/2 Σ_v A_v Ĥ_v(x)ᵀ W_v Ĥ_v(x),   Q = Σ_v A_v Ĥ_vᵀ W_v Ĥ_v
 
