@@ -57,6 +57,18 @@ def embedded(uv):
     return np.concatenate([uv, np.zeros((len(uv), 1))], axis=1)
 
 
+def central_gradient(energy, x, step=1e-6):
+    """∇energy at x (N, 3) by central differences of ``step``."""
+    fd = np.zeros_like(x)
+    for i in range(len(x)):
+        for p in range(3):
+            xp, xm = x.copy(), x.copy()
+            xp[i, p] += step
+            xm[i, p] -= step
+            fd[i, p] = (energy(xp) - energy(xm)) / (2 * step)
+    return fd
+
+
 def test_plate_gradient_and_hessian_match_finite_differences():
     uv, faces, _ = strip(0.05, 0.02, 0.01, "delaunay", clamp=False, seed=3)
     q = hessian_bending_matrix(uv, faces) * 2e-4
@@ -65,17 +77,10 @@ def test_plate_gradient_and_hessian_match_finite_differences():
     ptr, col = q.indptr.astype(np.int64), q.indices.astype(np.int64)
     grad = np.zeros_like(x)
     hessian_gradient(x, ptr, col, q.data, grad)
-    step = 1e-6
-    fd = np.zeros_like(x)
-    for i in range(len(x)):
-        for p in range(3):
-            xp, xm = x.copy(), x.copy()
-            xp[i, p] += step
-            xm[i, p] -= step
-            fd[i, p] = (plate_energy(q, xp) - plate_energy(q, xm)) / (2 * step)
+    fd = central_gradient(lambda y: plate_energy(q, y), x)
     np.testing.assert_allclose(grad, fd, rtol=0, atol=1e-7 * np.abs(grad).max())
     # the Hessian the solver assembles (k_b Q ⊗ I₃) is the derivative of that gradient
-    dense = q.toarray()
+    dense, step = q.toarray(), 1e-6
     for i, p in ((0, 0), (5, 2), (len(x) - 1, 1)):
         xp, xm = x.copy(), x.copy()
         xp[i, p] += step
@@ -325,14 +330,7 @@ def test_the_corrected_plates_term_gradient_matches_finite_differences(tmp_path)
     x = embedded(uv) + 0.01 * rng.normal(size=(len(uv), 3))
     grad = np.zeros_like(x)
     plate.assemble(x, grad, None)
-    step = 1e-6
-    fd = np.zeros_like(x)
-    for i in range(len(x)):
-        for p in range(3):
-            xp, xm = x.copy(), x.copy()
-            xp[i, p] += step
-            xm[i, p] -= step
-            fd[i, p] = (plate.energy(xp) - plate.energy(xm)) / (2 * step)
+    fd = central_gradient(plate.energy, x)
     np.testing.assert_allclose(grad, fd, rtol=0, atol=1e-7 * np.abs(grad).max())
     import scipy.sparse as sps
     full = sps.csr_matrix((plate.plate[2], plate.plate[1], plate.plate[0])).toarray()
@@ -341,6 +339,7 @@ def test_the_corrected_plates_term_gradient_matches_finite_differences(tmp_path)
     extra = plate.unassembled().toarray()
     np.testing.assert_allclose(np.kron(matrix, np.eye(3)) + extra, np.kron(full, np.eye(3)),
                                rtol=0, atol=1e-9 * np.abs(full).max())
+    step = 1e-6
     for i, p in ((0, 0), (7, 2)):  # ∂grad/∂x_ip is the column of (Q + C) ⊗ I₃
         xp, xm = x.copy(), x.copy()
         xp[i, p] += step
