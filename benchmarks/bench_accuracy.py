@@ -18,7 +18,12 @@ Writes ``accuracy.md`` and ``accuracy.png`` into the output folder:
 - no locking: stiff cloth (1e5–1e7 N/m) on the plate at one step per frame against its
   converged motion (BDF2, 32 steps per frame), and how far it falls;
 - robust starts: the plate crumpled (vertices displaced randomly) or flattened onto a
-  line, at one step per frame: no blow-up, the largest stretch.
+  line, at one step per frame: no blow-up, the largest stretch;
+- BDF2's order with each bending model: the small plate of tests/test_sim_accuracy.py
+  (6×6, stretch 1e3 N/m, shear 1e2 N/m, bend 1e-2 N·m, no damping, 0.3 s) pinned at a corner
+  in two triangles (vertex 0), at a corner in one (vertex 5) and at its top corners, solved
+  tightly (Newton to 1e-7 m/s) at 4–32 steps per frame (``--full``: to 128) against 256
+  (``--full``: 512): the largest vertex distance at 0.3 s and its ratio to ``dihedral``'s.
 """
 
 import math
@@ -45,6 +50,17 @@ TIGHT = dict(newton_iterations=60, newton_tolerance=full_or(1e-9, 1e-5), toleran
 PREVIOUS_DEFAULT = dict(integrator="euler", newton_iterations=1, newton_tolerance=1e-6,
                         tolerance=1e-6)
 ROOT = pathlib.Path(__file__).resolve().parents[1]
+# the small plate of tests/test_sim_accuracy.py, for BDF2's order with each bending model
+SMALL_PLATE = {"stretch": 1e3, "shear": 1e2, "bend": 1e-2, "damping": 0.0}
+SMALL_PINS = (("corner in two triangles", [0]), ("corner in one triangle", [5]),
+              ("top corners", ["top_corners"]))
+SMALL_STEPS = full_or((4, 8, 16, 32, 64, 128), (4, 8, 16, 32))
+SMALL_REF = full_or(512, 256)
+# Newton to 1e-7 m/s: at 1e-5 the solves' error could add up to h·1e-5 per step, 2e-5 m over
+# the 288 steps of 32 per frame, a fifth of their error (1e-4 m); at 1e-9 Newton runs to its
+# cap of 60 on most steps (the line search meets E's rounding)
+SMALL_TIGHT = dict(newton_iterations=60, newton_tolerance=1e-7, tolerance=1e-10,
+                   max_iterations=3000)
 
 
 def plate(substeps=1, frames=FRAMES, material=None, **solver):
@@ -183,6 +199,36 @@ def start_rows():
     return rows
 
 
+def small_plate_rows():
+    """BDF2 on the small plate, solved tightly, with each bending model."""
+    rows = []
+    for pinned, pins in SMALL_PINS:
+        errors = {}
+        for model in ("hessian", "dihedral"):
+            def cfg(s):
+                out = plate(s, frames=9, material={**SMALL_PLATE, "bend_model": model},
+                            integrator="bdf2", **SMALL_TIGHT)
+                out["mesh"]["grid"].update(nx=6, ny=6)
+                out["scene"]["pins"] = pins
+                return out
+            ref = trajectory(cfg(SMALL_REF))["x"][-1]
+            errors[model] = [float(np.linalg.norm(trajectory(cfg(s))["x"][-1] - ref,
+                                                  axis=1).max()) for s in SMALL_STEPS]
+        for model in ("hessian", "dihedral"):
+            e = errors[model]
+            for k, s in enumerate(SMALL_STEPS):
+                row = dict(pinned=pinned, model=model + (" (default)" if model == "hessian"
+                                                        else ""),
+                           steps_per_frame=s, error_m=e[k],
+                           to_dihedral=e[k] / errors["dihedral"][k])
+                if k:
+                    row["order"] = math.log2(e[k - 1] / e[k])
+                rows.append(row)
+            print(f"  small plate, {pinned}, {model}: "
+                  + " ".join(f"{s}: {x:.3g}" for s, x in zip(SMALL_STEPS, e)), flush=True)
+    return rows
+
+
 def plot(curves, path):
     plt = pyplot()
     if plt is None:
@@ -215,6 +261,7 @@ def run(out_dir):
     cost = cost_rows()
     stiff = stiff_rows()
     starts = start_rows()
+    orders = small_plate_rows()
     md = ["## Accuracy at one step per frame (BDF2 against backward Euler)\n",
           "Plate: 0.5 m × 0.5 m, 12×12 grid, stretch 1e4 N/m, shear 1e3 N/m, bend 1e-3 N·m, "
           "no damping, pinned at one corner, released horizontally, 30 fps. Error: the largest "
@@ -256,6 +303,9 @@ def run(out_dir):
            "`final_max_stretch`: the largest principal stretch at 0.5 s:\n",
            markdown_table(starts, ["start", "stretch", "status", "final_max_stretch",
                                    "newton_per_step"]),
+           "\n### BDF2's order with each bending model (the small plate)\n",
+           markdown_table(orders, ["pinned", "model", "steps_per_frame", "error_m", "order",
+                                   "to_dihedral"]),
            f"\nTotal benchmark time {time.perf_counter() - started:.0f} s.\n"]
     (out_dir / "accuracy.md").write_text("\n".join(md))
     doc = "docs/simulate.md"
@@ -267,7 +317,9 @@ def run(out_dir):
         "stretch", "setting", "from_tight_m", "from_fine_m", "drop_m"]), "accuracy")
     write_doc_table(doc, "accuracy-starts", markdown_table(starts, [
         "start", "stretch", "status", "final_max_stretch", "newton_per_step"]), "accuracy")
-    return rows, cost, stiff, starts
+    write_doc_table(doc, "accuracy-orders", markdown_table(orders, [
+        "pinned", "model", "steps_per_frame", "error_m", "order", "to_dihedral"]), "accuracy")
+    return rows, cost, stiff, starts, orders
 
 
 def _defaults():

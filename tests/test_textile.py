@@ -57,6 +57,18 @@ def embedded(uv):
     return np.concatenate([uv, np.zeros((len(uv), 1))], axis=1)
 
 
+def central_gradient(energy, x, step=1e-6):
+    """∇energy at x (N, 3) by central differences of ``step``."""
+    fd = np.zeros_like(x)
+    for i in range(len(x)):
+        for p in range(3):
+            xp, xm = x.copy(), x.copy()
+            xp[i, p] += step
+            xm[i, p] -= step
+            fd[i, p] = (energy(xp) - energy(xm)) / (2 * step)
+    return fd
+
+
 def test_plate_gradient_and_hessian_match_finite_differences():
     uv, faces, _ = strip(0.05, 0.02, 0.01, "delaunay", clamp=False, seed=3)
     q = hessian_bending_matrix(uv, faces) * 2e-4
@@ -65,17 +77,10 @@ def test_plate_gradient_and_hessian_match_finite_differences():
     ptr, col = q.indptr.astype(np.int64), q.indices.astype(np.int64)
     grad = np.zeros_like(x)
     hessian_gradient(x, ptr, col, q.data, grad)
-    step = 1e-6
-    fd = np.zeros_like(x)
-    for i in range(len(x)):
-        for p in range(3):
-            xp, xm = x.copy(), x.copy()
-            xp[i, p] += step
-            xm[i, p] -= step
-            fd[i, p] = (plate_energy(q, xp) - plate_energy(q, xm)) / (2 * step)
+    fd = central_gradient(lambda y: plate_energy(q, y), x)
     np.testing.assert_allclose(grad, fd, rtol=0, atol=1e-7 * np.abs(grad).max())
     # the Hessian the solver assembles (k_b Q ⊗ I₃) is the derivative of that gradient
-    dense = q.toarray()
+    dense, step = q.toarray(), 1e-6
     for i, p in ((0, 0), (5, 2), (len(x) - 1, 1)):
         xp, xm = x.copy(), x.copy()
         xp[i, p] += step
@@ -159,15 +164,16 @@ def test_a_uniform_bend_or_twist_stores_the_same_energy_in_every_direction(kind)
 @settings(max_examples=40, deadline=None)
 @given(nx=st.integers(3, 12), ny=st.integers(3, 12), cell=st.floats(0.001, 0.2),
        aspect=st.floats(0.25, 4.0),
-       hessian=st.tuples(*[st.floats(-50.0, 50.0)] * 3), slope=st.tuples(*[st.floats(-5.0, 5.0)] * 3),
+       hessian=st.tuples(*[st.floats(-50.0, 50.0)] * 3),
+       slope=st.tuples(*[st.floats(-5.0, 5.0)] * 3),
        angles=st.tuples(*[st.floats(-3.1, 3.1)] * 3))
 def test_a_quadratic_field_on_a_grid_stores_exactly_its_energy(nx, ny, cell, aspect, hessian,
                                                                 slope, angles):
     """Patch test: x = R (u, v, ½ uᵀHu + a·u + c) on clothtool's grid of any size (three
     vertices or more each way: a single row of quads has no curvature across it) and cells
-    of aspect 1:4 to 4:1, free edges and corners included: W = ½‖H‖²_F A to rounding (Q is calibrated to be exact on
-    quadratics at every vertex, and every direction a vertex cannot see is handed whole to a
-    neighbour that sees it)."""
+    of aspect 1:4 to 4:1, free edges and corners included: W = ½‖H‖²_F A to rounding (Q is
+    calibrated to be exact on quadratics at every vertex, and every direction a vertex cannot
+    see is handed whole to a neighbour that sees it)."""
     from clothtool.geometry import grid_triangles, grid_uv
 
     size = (cell * (nx - 1), cell * aspect * (ny - 1))
@@ -324,14 +330,7 @@ def test_the_corrected_plates_term_gradient_matches_finite_differences(tmp_path)
     x = embedded(uv) + 0.01 * rng.normal(size=(len(uv), 3))
     grad = np.zeros_like(x)
     plate.assemble(x, grad, None)
-    step = 1e-6
-    fd = np.zeros_like(x)
-    for i in range(len(x)):
-        for p in range(3):
-            xp, xm = x.copy(), x.copy()
-            xp[i, p] += step
-            xm[i, p] -= step
-            fd[i, p] = (plate.energy(xp) - plate.energy(xm)) / (2 * step)
+    fd = central_gradient(plate.energy, x)
     np.testing.assert_allclose(grad, fd, rtol=0, atol=1e-7 * np.abs(grad).max())
     import scipy.sparse as sps
     full = sps.csr_matrix((plate.plate[2], plate.plate[1], plate.plate[0])).toarray()
@@ -340,6 +339,7 @@ def test_the_corrected_plates_term_gradient_matches_finite_differences(tmp_path)
     extra = plate.unassembled().toarray()
     np.testing.assert_allclose(np.kron(matrix, np.eye(3)) + extra, np.kron(full, np.eye(3)),
                                rtol=0, atol=1e-9 * np.abs(full).max())
+    step = 1e-6
     for i, p in ((0, 0), (7, 2)):  # ∂grad/∂x_ip is the column of (Q + C) ⊗ I₃
         xp, xm = x.copy(), x.copy()
         xp[i, p] += step

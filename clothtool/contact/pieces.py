@@ -16,7 +16,12 @@ stick hold vertex by vertex. Their velocity changes within the step are
     rigid:  ĥ ‖a_v‖,    rest:  ‖D_v⁻¹ r_v‖ / ĥ,
 
 D_v the vertex's diagonal block of Newton's matrix (m_v/ĥ² for a free vertex alone, so
-that both read ĥ‖g_v‖/m_v on a lone vertex). Forces within a piece (membrane, cloth–cloth
+that both read ĥ‖g_v‖/m_v on a lone vertex). A piece held by pins moves rigidly only as
+its held vertices p let it, a + α × (x_p − c) = 0 (a piece held at one vertex turns about
+it, at two about their line, at three off a line not at all): (a, α) is then the force's
+projection onto those motions in the piece's mass metric; without it the twist, a sheet
+held along two edges, read 1.1–1.4 times the rigid share at Newton steps whose every other
+figure had converged, for a slide its pins forbid. Forces within a piece (membrane, cloth–cloth
 barrier and stick) have no resultant and no moment, so the rigid part is what a slide of
 the piece against its colliders, or against another piece, would release. A piece's
 slide adds up step after step, so it is held to a share (RIGID_SHARE) of the tolerance.
@@ -50,24 +55,49 @@ def cloth_pieces(faces, n):
 
 @njit(cache=True)
 def _inverse_psd(a):
-    """The pseudo-inverse of a symmetric PSD 3×3 (eigenvalues below 1e-12 of the largest
+    """The pseudo-inverse of a symmetric PSD matrix (eigenvalues below 1e-12 of the largest
     dropped: a piece on a line does not turn about it)."""
     w, q = np.linalg.eigh(a)
-    top = max(w[2], 0.0)
-    out = np.zeros((3, 3))
-    for k in range(3):
-        if w[k] > 1e-12 * top and w[k] > 0.0:
-            for i in range(3):
-                for j in range(3):
-                    out[i, j] += q[i, k] * q[j, k] / w[k]
+    top = max(w[-1], 0.0)
+    k = a.shape[0]
+    out = np.zeros((k, k))
+    for m in range(k):
+        if w[m] > 1e-12 * top and w[m] > 0.0:
+            for i in range(k):
+                for j in range(k):
+                    out[i, j] += q[i, m] * q[j, m] / w[m]
     return out
 
 
 @njit(cache=True)
-def rigid_accelerations(x, g, mass, piece, count):
-    """(N, 3) a_v = F/M + I⁻¹τ × (x_v − c) of each vertex's piece (see the module): the
+def _cross_matrix(r):
+    """[r]×, the matrix of r × ·."""
+    out = np.zeros((3, 3))
+    out[0, 1], out[0, 2], out[1, 2] = -r[2], r[1], -r[0]
+    out[1, 0], out[2, 0], out[2, 1] = r[2], -r[1], r[0]
+    return out
+
+
+@njit(cache=True)
+def _held_modes(c_tc):
+    """(6, k) orthonormal basis of the rigid modes (a, L α) that the held vertices allow:
+    the null space of CᵀC (``c_tc``, 6 × 6), eigenvalues below 1e-10 of the largest."""
+    w, q = np.linalg.eigh(c_tc)
+    k = 0
+    for m in range(6):
+        if w[m] <= 1e-10 * w[5]:
+            k += 1
+    return q[:, :k].copy()
+
+
+@njit(cache=True)
+def rigid_accelerations(x, g, mass, piece, count, held):
+    """(N, 3) a_v = a + α × (x_v − c) of each vertex's piece (see the module): the
     rigid-body acceleration that the forces g (N, 3) give each piece; 0 on a piece with no
-    free mass. mass (N,) 0 on vertices held in place."""
+    free mass. mass (N,) 0 on vertices held in place; ``held`` (N,) marks them (pins): a
+    piece turns and slides only as its held vertices let it, a + α × (x_p − c) = 0 at each
+    held p, so (a, α) is the force's projection onto those modes in the piece's mass metric
+    (none for a piece held at three points off a line)."""
     n = x.shape[0]
     big_m = np.zeros(count)
     c = np.zeros((count, 3))
@@ -82,7 +112,6 @@ def rigid_accelerations(x, g, mass, piece, count):
         if big_m[p] > 0.0:
             for i in range(3):
                 c[p, i] /= big_m[p]
-                f[p, i] /= big_m[p]  # F/M
     tau = np.zeros((count, 3))
     inertia = np.zeros((count, 3, 3))
     for v in range(n):
@@ -99,19 +128,64 @@ def rigid_accelerations(x, g, mass, piece, count):
             inertia[p, i, i] += mass[v] * rr
             for j in range(3):
                 inertia[p, i, j] -= mass[v] * r[i] * r[j]
-    alpha = np.zeros((count, 3))
+    # the held vertices' constraints C = [I, −[r/L]×] on (a, L α), L the radius of gyration
+    length = np.ones(count)
+    c_tc = np.zeros((count, 6, 6))
+    n_held = np.zeros(count, np.int64)
     for p in range(count):
         if big_m[p] > 0.0:
+            trace = inertia[p, 0, 0] + inertia[p, 1, 1] + inertia[p, 2, 2]
+            if trace > 0.0:
+                length[p] = np.sqrt(trace / big_m[p])
+    for v in range(n):
+        p = piece[v]
+        if not held[v] or big_m[p] == 0.0:
+            continue
+        n_held[p] += 1
+        r = np.empty(3)
+        for i in range(3):
+            r[i] = (x[v, i] - c[p, i]) / length[p]
+        cm = np.zeros((3, 6))
+        rx = _cross_matrix(r)
+        for i in range(3):
+            cm[i, i] = 1.0
+            for j in range(3):
+                cm[i, 3 + j] = -rx[i, j]
+        c_tc[p] += cm.T @ cm
+    acc = np.zeros((count, 3))
+    alpha = np.zeros((count, 3))
+    for p in range(count):
+        if big_m[p] == 0.0:
+            continue
+        if n_held[p] == 0:  # a free piece: F/M and I⁻¹τ
+            for i in range(3):
+                acc[p, i] = f[p, i] / big_m[p]
             alpha[p] = _inverse_psd(inertia[p]) @ tau[p]
+            continue
+        z = _held_modes(c_tc[p])
+        if z.shape[1] == 0:
+            continue
+        metric = np.zeros((6, 6))  # the piece's mass in (a, L α)
+        force = np.empty(6)
+        for i in range(3):
+            metric[i, i] = big_m[p]
+            force[i] = f[p, i]
+            force[3 + i] = tau[p, i] / length[p]
+            for j in range(3):
+                metric[3 + i, 3 + j] = inertia[p, i, j] / length[p] ** 2
+        q = z @ (_inverse_psd(z.T @ metric @ z) @ (z.T @ force))
+        for i in range(3):
+            acc[p, i] = q[i]
+            alpha[p, i] = q[3 + i] / length[p]
     a = np.zeros((n, 3))
     for v in range(n):
         p = piece[v]
         if big_m[p] == 0.0:
             continue
         r0, r1, r2 = x[v, 0] - c[p, 0], x[v, 1] - c[p, 1], x[v, 2] - c[p, 2]
-        a[v, 0] = f[p, 0] + alpha[p, 1] * r2 - alpha[p, 2] * r1
-        a[v, 1] = f[p, 1] + alpha[p, 2] * r0 - alpha[p, 0] * r2
-        a[v, 2] = f[p, 2] + alpha[p, 0] * r1 - alpha[p, 1] * r0
+        a[v, 0] = acc[p, 0] + alpha[p, 1] * r2 - alpha[p, 2] * r1
+        a[v, 1] = acc[p, 1] + alpha[p, 2] * r0 - alpha[p, 0] * r2
+        a[v, 2] = acc[p, 2] + alpha[p, 0] * r1 - alpha[p, 1] * r0
     return a
 
 
@@ -132,12 +206,12 @@ def _solved_norm(d, b):
 
 
 @njit(cache=True)
-def piece_velocities(x, g, mass, diag, h_eff, piece, count):
+def piece_velocities(x, g, mass, diag, h_eff, piece, count, held):
     """(rigid, rest): the largest velocity change (m/s) within the step that the residual g
     (N, 3) makes through the rigid motions of the pieces, and through the rest against the
     diagonal blocks diag (N, 3, 3) (see the module); mass (N,) 0 on vertices held in place
-    (left out), piece (N,) each vertex's piece of ``count``."""
-    a = rigid_accelerations(x, g, mass, piece, count)
+    (left out; ``held`` marks them), piece (N,) each vertex's piece of ``count``."""
+    a = rigid_accelerations(x, g, mass, piece, count, held)
     rigid = 0.0
     rest = 0.0
     res = np.empty(3)
@@ -151,8 +225,8 @@ def piece_velocities(x, g, mass, diag, h_eff, piece, count):
     return rigid, rest
 
 
-def slide_velocity(x, g, mass, diag, h_eff, piece, count):
+def slide_velocity(x, g, mass, diag, h_eff, piece, count, held):
     """max(rigid / RIGID_SHARE, rest) of :func:`piece_velocities` (m/s): Newton's residual
     test where friction holds cloth."""
-    rigid, rest = piece_velocities(x, g, mass, diag, h_eff, piece, count)
+    rigid, rest = piece_velocities(x, g, mass, diag, h_eff, piece, count, held)
     return max(rigid / RIGID_SHARE, rest)

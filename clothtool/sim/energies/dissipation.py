@@ -44,6 +44,7 @@ from clothtool.sim.energies.bending import dihedral_assemble, dihedral_total_ene
 from clothtool.sim.energies.membrane import (add_triangle, deformation, deformation_gradient,
                                              membrane_density, membrane_total_energy,
                                              shear_outer, to_vertices)
+from clothtool.sim.energies.plate import quadratic_form
 from clothtool.vec3 import add, dot, load, scale
 
 EPS = 1e-12
@@ -165,28 +166,13 @@ def plate_dissipation(x, base, ptr, col, coef, slots, grad, values):
     """½ Σ_c (x − b)_cᵀ C (x − b)_c with C (CSR ptr, col, coef); with grad of rows, adds its
     gradient C(x − b) to grad (N, 3) and C's entries to the diagonals of the blocks
     values[slots]."""
-    total = 0.0
-    add = grad.shape[0] > 0
-    for i in range(x.shape[0]):
-        q0 = q1 = q2 = 0.0
-        for k in range(ptr[i], ptr[i + 1]):
-            j = col[k]
-            c = coef[k]
-            q0 += c * (x[j, 0] - base[j, 0])
-            q1 += c * (x[j, 1] - base[j, 1])
-            q2 += c * (x[j, 2] - base[j, 2])
-            if add:
-                block = values[slots[k]]
-                block[0, 0] += c
-                block[1, 1] += c
-                block[2, 2] += c
-        total += 0.5 * ((x[i, 0] - base[i, 0]) * q0 + (x[i, 1] - base[i, 1]) * q1
-                        + (x[i, 2] - base[i, 2]) * q2)
-        if add:
-            grad[i, 0] += q0
-            grad[i, 1] += q1
-            grad[i, 2] += q2
-    return total
+    if grad.shape[0] > 0:
+        for k in range(col.shape[0]):
+            block = values[slots[k]]
+            block[0, 0] += coef[k]
+            block[1, 1] += coef[k]
+            block[2, 2] += coef[k]
+    return quadratic_form(x - base, ptr, col, coef, grad)
 
 
 class StrainDissipation:

@@ -31,9 +31,9 @@ twist and saddle for free). Q is built once from the rest pattern:
    weak Hessian sees no curvature across a free edge, and the boundary's half-cells get it
    from the vertices one row in. (Handing none over, "no moment across a free edge", left
    those half-cells without it: a uniform bend of a free 6 × 6 grid came out 17 % soft,
-   12 × 12 9 %, 24 × 24 4 %: a plate softer on a coarse mesh than on a fine one.) Only a clamp, a boundary edge with both ends held, hands
-   nothing across itself: the cloth is held flat there. A_v are mixed Voronoi areas (Meyer
-   et al. 2003).
+   12 × 12 9 %, 24 × 24 4 %: a plate softer on a coarse mesh than on a fine one.) Only a
+   clamp, a boundary edge with both ends held, hands nothing across itself: the cloth is
+   held flat there. A_v are mixed Voronoi areas (Meyer et al. 2003).
 
     W_bend = k_b/2 Σ_v A_v Ĥ_v(x)ᵀ W_v Ĥ_v(x),   Q = Σ_v A_v Ĥ_vᵀ W_v Ĥ_v
 
@@ -369,24 +369,31 @@ def mixed_voronoi_areas(uv, faces):
 
 
 @njit(cache=True)
-def hessian_gradient(x, ptr, col, val, grad):
-    """W = ½ Σ_c x_cᵀ Q x_c with Q (CSR ptr, col, val, rigidity included); adds ∇W = Q x to
-    grad (N, 3) unless grad is empty."""
+def quadratic_form(d, ptr, col, val, grad):
+    """½ Σ_c d_cᵀ Q d_c with Q (CSR ptr, col, val) and d (N, 3); adds its gradient Q d to grad
+    (N, 3) unless grad is empty."""
     total = 0.0
     add = grad.shape[0] > 0
-    for i in range(x.shape[0]):
+    for i in range(d.shape[0]):
         q0 = q1 = q2 = 0.0
         for k in range(ptr[i], ptr[i + 1]):
             j = col[k]
-            q0 += val[k] * x[j, 0]
-            q1 += val[k] * x[j, 1]
-            q2 += val[k] * x[j, 2]
-        total += 0.5 * (x[i, 0] * q0 + x[i, 1] * q1 + x[i, 2] * q2)
+            q0 += val[k] * d[j, 0]
+            q1 += val[k] * d[j, 1]
+            q2 += val[k] * d[j, 2]
+        total += 0.5 * (d[i, 0] * q0 + d[i, 1] * q1 + d[i, 2] * q2)
         if add:
             grad[i, 0] += q0
             grad[i, 1] += q1
             grad[i, 2] += q2
     return total
+
+
+@njit(cache=True)
+def hessian_gradient(x, ptr, col, val, grad):
+    """W = ½ Σ_c x_cᵀ Q x_c with Q (CSR ptr, col, val, rigidity included); adds ∇W = Q x to
+    grad (N, 3) unless grad is empty."""
+    return quadratic_form(x, ptr, col, val, grad)
 
 
 @njit(cache=True)

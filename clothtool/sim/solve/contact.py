@@ -117,6 +117,7 @@ class BarrierContact:
         # analytic colliders (planes, and vertices with a radius: spheres, capsules)
         self.shapes = len(scene.planes) > 0 or bool(np.any(scene.geometry[1] > 0.0))
         self.free_mass = np.where(free, mass, 0.0)
+        self.held = ~np.asarray(free, dtype=np.bool_)  # pinned cloth vertices
         self.piece, self.n_pieces = cloth_pieces(scene.faces[:scene.n_cloth_faces], n)
         self.y = np.zeros((total, 3))  # cloth then collider positions
         self.dy = np.zeros((total, 3))
@@ -351,7 +352,7 @@ class BarrierContact:
         the rest against the diagonal blocks diag (N, 3, 3) of Newton's matrix
         (:func:`clothtool.contact.pieces.slide_velocity`)."""
         return slide_velocity(x, residual, self.free_mass, diag, h_eff, self.piece,
-                              self.n_pieces)
+                              self.n_pieces, self.held)
 
     def assemble(self, x, grad, matrix):
         """E_c + D at the cloth positions x; adds their gradient into grad (N, 3), the
