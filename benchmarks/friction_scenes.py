@@ -79,16 +79,17 @@ def incline_motion(folder, surface, theta, mu, seconds):
     return s[-1], 2.0 * fit[0]
 
 
-def turning_sphere(folder, n=16, width=1.0, seconds=2.0, fps=30, mu=0.4, damping=0.0):
+def turning_sphere(folder, n=16, width=1.0, seconds=2.0, fps=30, mu=0.4, damping=0.0,
+                   material=None):
     """A width × width sheet dropped 1 cm onto a sphere of radius 0.3 m turning at 180°/s about
-    the vertical, friction μ. Returns (the cloth's angular velocity about the vertical per
-    frame (rad/s), the sphere's, the SimulationResult)."""
+    the vertical, friction μ (``material``: more material keys). Returns (the cloth's angular
+    velocity about the vertical per frame (rad/s), the sphere's, the SimulationResult)."""
     omega = np.pi
     centre = [0.0, -0.31, 0.0]
     config = {"mesh": {"grid": {"nx": n, "ny": n, "width": width, "height": width,
                                 "plane": "xz"}},
               "material": {"density": 0.2, "stretch": 1000.0, "shear": 100.0, "bend": 1e-5,
-                           "damping": damping},
+                           "damping": damping, **(material or {})},
               "scene": {"colliders": [{"sphere": {
                   "center": centre, "radius": 0.3, "friction": mu,
                   "motion": {"rotate": {"center": centre, "axis": [0, 1, 0], "speed": omega}}}}]},

@@ -12,8 +12,8 @@ SPEC_DEFAULTS = {  # the documented example, entry by entry, and the simulator's
     # settings; the sheet is horizontal (xz), since an upright one (xy) starts inside the sphere
     "mesh": {"grid": {"nx": 30, "ny": 30, "width": 1.0, "height": 1.0, "plane": "xz"}},
     "material": {"density": 0.2, "stretch": 5000.0, "rest_stretch": 1.0, "shear": 50.0, "bend": 1.0e-5,
-                 "damping": 0.01, "bend_model": "hessian", "damping_model": "frozen",
-                 "bending_length": None, "membrane_model": "triangle",
+                 "damping": 0.01, "bend_model": "hessian", "damping_model": "strain",
+                 "bending_length": None, "plate_correction": False, "membrane_model": "triangle",
                  "preset": None, "kes": None},
     "materials": {},
     "scene": {"gravity": [0, -9.81, 0], "pins": ["top_corners"],

@@ -114,6 +114,16 @@ def test_first_order_it_is_the_frozen_stretch_damping():
         assert element(base + d.reshape(3, 3), length)[0] == pytest.approx(quadratic, rel=20 * eps)
 
 
+def assert_gradient_is_central_differences(term, x, grad):
+    """``grad`` against central differences of ``term.energy`` at ``x`` (steps of 1e-7)."""
+    fd = np.empty(x.size)
+    for i in range(x.size):
+        d = np.zeros(x.size)
+        d[i] = 1e-7
+        fd[i] = (term.energy(x + d.reshape(x.shape)) - term.energy(x - d.reshape(x.shape))) / 2e-7
+    np.testing.assert_allclose(grad.ravel(), fd, atol=1e-6 * np.abs(fd).max())
+
+
 def test_the_mesh_kernels_sum_the_elements_and_hinges():
     """Triangles (stretch, shear) and hinges (bending, the dihedral kernel with c → βc/ĥ and
     θ̄ → Θ): energy, gradient against central differences, projected Hessian blocks."""
@@ -138,12 +148,7 @@ def test_the_mesh_kernels_sum_the_elements_and_hinges():
     assert bending > 0.0
     assert total == pytest.approx(dissipation_energy(x, model.faces, model.dr_inv, model.area,
                                                      term.coef, term.base) + bending, rel=1e-12)
-    fd = np.empty(x.size)
-    for i in range(x.size):
-        d = np.zeros(x.size)
-        d[i] = 1e-7
-        fd[i] = (term.energy(x + d.reshape(x.shape)) - term.energy(x - d.reshape(x.shape))) / 2e-7
-    np.testing.assert_allclose(grad.ravel(), fd, atol=1e-6 * np.abs(fd).max())
+    assert_gradient_is_central_differences(term, x, grad)
     g, h = np.empty(9), np.empty((9, 9))
     dense = np.zeros((x.size, x.size))
     for t, f in enumerate(model.faces):
@@ -190,6 +195,43 @@ def test_with_the_membrane_in_one_pass_it_is_the_sum_of_the_two():
     assert fused.energy(x) == pytest.approx(e2, rel=1e-12)
     np.testing.assert_allclose(g1, g2, atol=1e-12 * np.abs(g2).max())
     np.testing.assert_allclose(one.values, two.values, atol=1e-12 * np.abs(two.values).max())
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.integers(0, 2**31 - 1), st.floats(10.0, 1e5), st.floats(10.0, 1e5),
+       st.floats(0.8, 1.2), st.floats(0.8, 1.2), st.floats(0.0, 1e4),
+       st.lists(st.floats(0.0, 1e3), min_size=3, max_size=3))
+def test_one_pass_is_the_membrane_and_the_dissipation_on_random_triangles(seed, k_u, k_v, b_u,
+                                                                         b_v, shear, coef):
+    """strain_assemble on one triangle: the membrane element's energy, gradient and projected
+    Hessian plus the dissipation element's (projected), whatever the material and shape."""
+    from clothtool.sim.energies.dissipation import strain_assemble
+    from clothtool.sim.energies.membrane import membrane_element
+    from clothtool.sim.linalg.blocks import BlockPattern
+
+    rng = np.random.default_rng(seed)
+    x, base = triangle(rng), np.append(rng.uniform(0.5, 1.5, 2), rng.uniform(-0.5, 0.5))
+    stretch, coef = np.array([[k_u, k_v, b_u, b_v]]), np.array([coef])
+    faces = np.array([[0, 1, 2]])
+    pattern = BlockPattern(3, faces)
+    matrix = BlockMatrix(pattern)
+    grad = np.zeros((3, 3))
+    w, phi = strain_assemble(x, faces, DR_INV[None], np.array([AREA]), stretch,
+                             np.array([shear]), coef, base[None], pattern.slots(faces), grad,
+                             matrix.values)
+    g1, h1, g2, h2 = np.empty(9), np.empty((9, 9)), np.empty(9), np.empty((9, 9))
+    w1 = membrane_element(x[0], x[1], x[2], DR_INV, AREA, stretch[0], shear, True, g1, h1,
+                          np.empty((6, 6)))
+    phi2 = dissipation_element(x[0], x[1], x[2], DR_INV, AREA, coef[0], base, False, g2, h2)
+    assert w == pytest.approx(w1, rel=1e-12, abs=1e-300)
+    assert phi == pytest.approx(phi2, rel=1e-12, abs=1e-300)
+    scale = max(np.abs(g1 + g2).max(), 1e-300)
+    np.testing.assert_allclose(grad.ravel(), g1 + g2, atol=1e-12 * scale)
+    dense = np.zeros((9, 9))
+    v = np.eye(9)
+    for i in range(9):
+        dense[:, i] = matrix.multiply(v[i].reshape(3, 3), np.empty((3, 3))).ravel()
+    np.testing.assert_allclose(dense, h1 + h2, atol=1e-12 * max(np.abs(h1 + h2).max(), 1e-300))
 
 
 def test_a_rigid_rotation_feels_no_damping_force():
@@ -257,12 +299,7 @@ def test_the_plates_damping_is_its_own_matrix_and_turns_with_its_force():
     grad = np.zeros_like(x)
     matrix = BlockMatrix(model.pattern)
     term.assemble(x, grad, matrix.values)
-    fd = np.empty(x.size)
-    for i in range(x.size):
-        d = np.zeros(x.size)
-        d[i] = 1e-7
-        fd[i] = (term.energy(x + d.reshape(x.shape)) - term.energy(x - d.reshape(x.shape))) / 2e-7
-    np.testing.assert_allclose(grad.ravel(), fd, atol=1e-6 * np.abs(fd).max())
+    assert_gradient_is_central_differences(term, x, grad)
     v = rng.normal(size=x.shape)
     triangles = BlockMatrix(model.pattern)
     from clothtool.sim.energies.dissipation import strain_assemble
@@ -313,11 +350,14 @@ def test_a_crumpled_sheet_relaxes_by_frame_8_at_one_step_per_frame(substeps):
 
 def test_strain_damping_is_the_implicit_methods_alone():
     base = {"mesh": {"grid": {"nx": 4, "ny": 4}}}
-    assert build_model(load_config(base)).strain_damping is None  # the default: frozen βK(x_n)
+    assert build_model(load_config(base)).strain_damping is not None  # the default
+    frozen = {**base, "material": {"damping_model": "frozen"}}
+    assert build_model(load_config(frozen)).strain_damping is None
+    undamped = {**base, "material": {"damping": 0.0}}
+    assert build_model(load_config(undamped)).strain_damping is None
     strain = {**base, "material": {"damping_model": "strain"}}
-    assert build_model(load_config(strain)).strain_damping is not None
     for method in ("explicit", "vbd", "mass-spring"):
-        # these methods damp with their own βK
+        # these methods damp with their own βK, the default strain damping notwithstanding
         assert build_model(load_config({**base, "solver": {"method": method}})).strain_damping is None
         with pytest.raises(InputError, match=rf"solver.method: '{method}' does not support "
                                              r"material.damping_model: strain"):

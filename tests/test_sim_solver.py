@@ -184,7 +184,13 @@ def test_energy_decreases_under_damping(tmp_path):
 
 
 def test_no_penetration_of_a_sphere_or_plane(tmp_path):
+    """A sheet dropped on a sphere with friction 0.3 over a plane. Where it comes to rest on
+    the sphere, and so how hard it presses at the top, depends on the path its friction took
+    it: the resting gap is measured with ``damping_model: frozen`` (1.98 mm; with the default
+    strain damping the sheet slides further down the sides and rests at 1.88 mm, undamped at
+    1.93 mm: all inside the barrier's wall)."""
     cfg = config(mesh={"grid": {"nx": 13, "ny": 13, "plane": "xz"}},
+                 material={"damping_model": "frozen"},
                  scene={"colliders": [{"sphere": {"center": [0, -0.4, 0], "radius": 0.3,
                                                   "friction": 0.3}},
                                       {"plane": {"point": [0, -0.8, 0], "normal": [0, 1, 0]}}]},

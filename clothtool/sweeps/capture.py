@@ -12,10 +12,12 @@ frame 0 the initial state, frame k the simulation's output frame k. Two ways to 
 Either way the residual is a vector per point, so its length is the distance the report
 gives and least squares sees a smooth function of the simulated positions (an unsigned
 distance has a kink at 0). Frame 0 is not compared: it is the config's initial state in every
-simulation, so an offset of the capture there (a capture that starts slightly off) is
-reported, not fitted.
+simulation. A capture that starts slightly off it is first moved rigidly onto it
+(:func:`register`); what is left at frame 0 (a capture that does not start from the config's
+shape) is reported, not fitted.
 """
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -24,6 +26,7 @@ from clothtool.errors import InputError
 
 COMPARISONS = ("auto", "vertex", "surface")
 NEAREST = 8  # candidate triangles per point before the exactness check
+ICP_ITERATIONS = 30
 
 
 @dataclass
@@ -93,6 +96,45 @@ def read_capture(capture, count, positions, faces, compare="auto"):
                          keyword="compare", value=compare)
     mode = "vertex" if compare == "vertex" or (compare == "auto" and same) else "surface"
     return Capture(frames, np.asarray(first.faces, np.int64), paths, mode)
+
+
+def register(capture, positions, faces, move=True, iterations=ICP_ITERATIONS):
+    """Move every frame of ``capture`` by the rigid motion that brings its frame 0 nearest the
+    config's initial mesh (``positions``, ``faces``), in place: a capture that starts slightly
+    off (a registration error, another origin or up axis) is compared as if it had not.
+    Vertex for vertex, the motion is Kabsch's (least squares over the vertices); surface to
+    surface, iterative closest points (Besl & McKay 1992): Kabsch onto the closest points of the
+    initial surface, ``iterations`` times or until it stops moving; ``move=False`` only
+    measures. Returns (frame 0's RMS distance before, after, translation length (m), rotation
+    angle (rad))."""
+    x0 = capture.frames[0]
+
+    def distance(x):
+        d = x - positions if capture.mode == "vertex" else surface_offsets(x, positions, faces)
+        return float(np.sqrt(np.mean((d ** 2).sum(axis=1))))
+
+    before = distance(x0)
+    rotation, shift = np.eye(3), np.zeros(3)
+    for _ in range(0 if not move else 1 if capture.mode == "vertex" else iterations):
+        moved = x0 @ rotation.T + shift
+        target = positions if capture.mode == "vertex" else (
+            moved - surface_offsets(moved, positions, faces))
+        r, t = kabsch(moved, target)
+        rotation, shift = r @ rotation, r @ shift + t
+        if np.abs(r - np.eye(3)).max() < 1e-12 and np.abs(t).max() < 1e-12:
+            break
+    capture.frames = capture.frames @ rotation.T + shift
+    angle = math.acos(min(max((np.trace(rotation) - 1.0) / 2.0, -1.0), 1.0))
+    return before, distance(capture.frames[0]), float(np.linalg.norm(shift)), angle
+
+
+def kabsch(x, y):
+    """The rotation R and translation t minimising Σ‖R x_i + t − y_i‖² (Kabsch 1976)."""
+    cx, cy = x.mean(axis=0), y.mean(axis=0)
+    u, _, vt = np.linalg.svd((x - cx).T @ (y - cy))
+    d = np.sign(np.linalg.det(vt.T @ u.T))
+    r = vt.T @ np.diag([1.0, 1.0, d]) @ u.T
+    return r, cy - r @ cx
 
 
 def _shown(capture):

@@ -22,18 +22,19 @@ the next step would move the values by less than a tenth of their ±; least_squa
 tolerances end a fit to a capture without scatter.
 
 At the fit, J (per log v) gives the Gauss–Newton covariance C = s² (JᵀJ)⁻¹, s² = ‖r‖²/(m − n)
-(m residuals, n values): the report's ± is √C_ii, relative for a log range. It is the
-capture's scatter seen through the Jacobian; a difference the simulation keeps from frame to
-frame (another mesh's discretisation, a model that cannot follow the capture) is not scatter
-and is not in it. Its share of the RMS is estimated from the residual's correlation c from
-one frame to the next: systematic ≈ RMS·√c. A value is not pinned down by the capture when its
-± exceeds LOOSE (10 %; 1 % of a linear range), or when doubling it (a tenth of a linear range) moves the sequence less
-than that systematic part; values are told apart only in combination when a direction of the
-values (a right singular vector of J scaled so) is weak in the same sense and shares itself
-among them.
+(m residuals, n values): σ = √C_ii, relative for a log range; the report's ± is its 95 %
+interval, 1.96 σ. It is the capture's scatter seen through the Jacobian; a difference the
+simulation keeps from frame to frame (another mesh's discretisation, a model that cannot
+follow the capture) is not scatter and is not in it. Its share of the RMS is estimated from the
+residual's correlation c from one frame to the next: systematic ≈ RMS·√c. A value is not pinned
+down by the capture when σ exceeds LOOSE (10 %; 1 % of a linear range), or when doubling it (a
+tenth of a linear range) moves the sequence less than that systematic part; values are told
+apart only in combination when a direction of the values (a right singular vector of J scaled
+so) is weak in the same sense and shares itself among them.
 """
 
 import copy
+import itertools
 import json
 import math
 import time
@@ -99,8 +100,11 @@ class FitResult:
     (a linear range: moves by a tenth of the range); ``systematic``: the part of the RMS
     distance that stays from frame to frame (m); ``tied``: ([keys], RMS effect of doubling
     them together along their weak direction) of values told apart only in combination;
-    ``loose``: keys the capture does not pin down;
-    ``sbatch``: set while a round waits for Slurm (the rest is the best so far)."""
+    ``loose``: keys the capture does not pin down; ``rms``, ``largest``, ``start_rms``: the
+    distance to the capture (m) at the fit and at the start; ``offset0``, ``offset0_left``:
+    frame 0's RMS distance to the config's initial state (m) before and after the capture was
+    moved onto it; ``sbatch``: set while a round waits for
+    Slurm (the rest is the best so far)."""
 
     output_dir: Path
     mode: str
@@ -112,6 +116,7 @@ class FitResult:
     rms: float = float("nan")
     largest: float = float("nan")
     offset0: float = 0.0
+    offset0_left: float = 0.0
     systematic: float = 0.0
     sigma: dict = field(default_factory=dict)
     doubling: dict = field(default_factory=dict)
@@ -133,8 +138,8 @@ class FitResult:
 
 
 def fit(config, capture, ranges, output_dir, *, settings=None, compare="auto", outliers=None,
-        jobs=1, slurm=False, max_simulations=MAX_SIMULATIONS, compare_strain=False,
-        on_done=None, log=None):
+        register=True, scan=0, jobs=1, slurm=False, max_simulations=MAX_SIMULATIONS,
+        compare_strain=False, on_done=None, log=None):
     """Fit the ``ranges`` keys of the simulation ``config`` (a YAML path) to the captured
     frames ``capture`` (a folder, glob or list of PLY/OBJ files: frame 0 the initial state,
     frame k the config's output frame k).
@@ -143,10 +148,15 @@ def fit(config, capture, ranges, output_dir, *, settings=None, compare="auto", o
     (``material.bend``, ``material.bend.0`` for the warp of a [warp, weft] pair, damping,
     friction); the fit starts from the config's value (the range's middle when it lies
     outside). ``settings``: ``["key=value"]`` applied to the config first. ``compare``:
-    'vertex', 'surface' or 'auto' (:mod:`clothtool.sweeps.capture`). ``outliers``: a
+    'vertex', 'surface' or 'auto' (:mod:`clothtool.sweeps.capture`). ``register``: move the
+    capture rigidly so that its frame 0 lies nearest the config's initial state
+    (:func:`~clothtool.sweeps.capture.register`). ``scan``: first simulate ``scan`` values of
+    each key across its range (the centres of a grid of scanⁿ cells, one round) and start from
+    the one nearest the capture: for keys with local minima (friction). ``outliers``: a
     distance (m) beyond which a residual counts less and less (Cauchy's loss ln(1 + z),
-    z = (r/outliers)²), for captures with stray points; None: plain least squares. ``jobs``, ``slurm``: how each round runs (as
-    :func:`~clothtool.sweeps.api.sweep`); ``max_simulations``: the budget.
+    z = (r/outliers)²), for captures with stray points; None: plain least squares. ``jobs``,
+    ``slurm``: how each round runs (as :func:`~clothtool.sweeps.api.sweep`);
+    ``max_simulations``: the budget.
     ``compare_strain``: also analyse the capture and the fitted simulation and compare their
     per-triangle stretches. ``on_done(run, status)`` as each simulation ends; ``log(line)``
     with what the fit finds as it goes.
@@ -169,12 +179,13 @@ def fit(config, capture, ranges, output_dir, *, settings=None, compare="auto", o
 
         pool = Pool(None, jobs)
     try:
-        problem = _Problem(config, capture, ranges, settings, compare, outliers, max_simulations)
+        problem = _Problem(config, capture, ranges, settings, compare, outliers, max_simulations,
+                           register, scan)
         root = Path(output_dir)
         problem.claim(root)
         result = FitResult(root, problem.capture.mode, problem.parameters,
                            problem.capture.frames.shape[1], len(problem.capture.frames) - 1,
-                           offset0=problem.offset0)
+                           offset0=problem.offset0, offset0_left=problem.left0)
         log(problem.describe())
         evals = FitRuns(root, problem, jobs, slurm, on_done, pool)
         best, iterates = _solve(problem, evals, result, outliers, max_simulations, log)
@@ -211,6 +222,16 @@ def _solve(problem, evals, result, outliers, max_simulations, log):
             raise StopIteration
 
     try:
+        if problem.scan:  # a grid over the ranges in one round; start from its nearest point
+            axis = (np.arange(problem.scan) + 0.5) / problem.scan
+            grid = [np.array(u) for u in itertools.product(axis, repeat=len(u0))]
+            evals.evaluate(grid)
+            u0 = min(grid, key=lambda u: np.nan_to_num(evals.rms(u), nan=np.inf))
+            for p, value in zip(problem.parameters, problem.values(u0)):
+                p.start = value
+            log(f"  scan: {len(grid)} simulations; the nearest to the capture: "
+                f"{problem.shown(u0)}, RMS {1000 * evals.rms(u0):.3g} mm")
+        evals.start = u0
         evals.evaluate([u0], with_steps=True)  # the start and its Jacobian: one round
         solution = least_squares(evals.residual, u0, jac=evals.jacobian, bounds=(0.0, 1.0),
                                  method="trf", x_scale="jac", ftol=FTOL, xtol=XTOL, gtol=1e-10,
@@ -285,13 +306,15 @@ def _edm(evals, u):
 class _Problem:
     """The checked inputs: base config, settings, parameters, capture."""
 
-    def __init__(self, config, capture, ranges, settings, compare, outliers, max_simulations):
+    def __init__(self, config, capture, ranges, settings, compare, outliers, max_simulations,
+                 register, scan):
         from clothtool.config_tools import apply_overrides
         from clothtool.sim.model.config import load_config, read_yaml
         from clothtool.sim.model.mesh import build_rest_mesh
         from clothtool.sweeps import spec
         from clothtool.sweeps.api import _with_settings
         from clothtool.sweeps.capture import read_capture
+        from clothtool.sweeps.capture import register as register_capture
 
         self.base = Path(config)
         self.settings = list(settings or ())
@@ -338,9 +361,16 @@ class _Problem:
         self.capture = read_capture(capture, count, mesh.positions, mesh.faces, compare)
         self.target = [str(Path(p).resolve()) for p in self.capture.paths]
         self.compare, self.outliers, self.max_simulations = compare, outliers, max_simulations
-        offset = self.capture.frames[0] - mesh.positions if self.capture.mode == "vertex" else None
-        self.offset0 = (float(np.sqrt(np.mean((offset ** 2).sum(axis=1))))
-                        if offset is not None else 0.0)
+        self.register = register
+        if isinstance(scan, bool) or not isinstance(scan, int) or scan < 0:
+            raise InputError("must be a whole number ≥ 0", keyword="scan", value=scan)
+        if scan ** len(self.parameters) > max_simulations:
+            raise InputError(f"{scan}^{len(self.parameters)} = {scan ** len(self.parameters)} "
+                             f"simulations, more than the budget of {max_simulations}",
+                             keyword="scan", value=scan)
+        self.scan = scan
+        self.offset0, self.left0, self.shift, self.angle = register_capture(
+            self.capture, mesh.positions, mesh.faces, move=register)
         # the sweeps' --set: the user's, then a number turned into its [warp, weft] pair
         self.sweep_settings = self.settings + [f"{k}={json.dumps(v)}" for k, v in expanded]
 
@@ -361,15 +391,18 @@ class _Problem:
         line = (f"fit: {len(self.parameters)} value{'s' if len(self.parameters) > 1 else ''} "
                 f"from {len(c.frames) - 1} frames of {c.frames.shape[1]} captured vertices, "
                 f"compared {how}")
-        if c.mode == "vertex":
-            line += f"; frame 0 is {1000 * self.offset0:.3g} mm RMS from the config's initial state"
+        line += f"; frame 0 is {1000 * self.offset0:.3g} mm RMS from the config's initial state"
+        if self.register and self.offset0 > 1e-9:
+            line += (f", {1000 * self.left0:.3g} mm once moved rigidly onto it (by "
+                     f"{1000 * self.shift:.3g} mm and {math.degrees(self.angle):.3g}°)")
         return line
 
     def record(self):
         return {"format": FORMAT, "config": str(self.base.resolve()), "base_config": self.raw,
                 "target": self.target, "ranges": {p.key: [p.lo, p.hi, "log" if p.log else
                                                          "linear"] for p in self.parameters},
-                "compare": self.capture.mode, "outliers": self.outliers}
+                "compare": self.capture.mode, "outliers": self.outliers,
+                "register": self.register, "scan": self.scan}
 
     def claim(self, root):
         """``root`` is free for this fit (absent, empty or holding the same fit), then its
@@ -407,6 +440,8 @@ def _numeric_key(raw, checked, key, shown, base_dir):
             node = node[int(part)]
         elif hasattr(node, "__dataclass_fields__") and part in node.__dataclass_fields__:
             node = getattr(node, part)
+        elif hasattr(node, "__dataclass_fields__") and part == getattr(node, "kind", None):
+            continue  # a tagged entry's tag: scene.colliders.0.sphere.friction
         elif (depth == len(parts) - 1 and part in ("0", "1") and isinstance(node, (int, float))
               and not isinstance(node, bool)):
             from clothtool.config_tools import assign

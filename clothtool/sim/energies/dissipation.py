@@ -41,15 +41,15 @@ from numba import njit
 
 from clothtool.geometry import dihedral_angles
 from clothtool.sim.energies.bending import dihedral_assemble, dihedral_total_energy
-from clothtool.sim.energies.plate import hessian_gradient
 from clothtool.sim.energies.membrane import (add_triangle, deformation, deformation_gradient,
                                              membrane_density, membrane_total_energy,
-                                             to_vertices)
+                                             shear_outer, to_vertices)
 from clothtool.vec3 import add, dot, load, scale
 
 EPS = 1e-12
 ZERO = (0.0, 0.0, 0.0)
 NO_GRADIENT = np.zeros((0, 3))  # the energy-only call of the plate's kernel
+NO_BLOCKS = np.zeros((0, 3, 3))
 
 
 @njit(cache=True)
@@ -94,15 +94,7 @@ def dissipation_density(f0, f1, coef, base, exact, g0, g1, h_f):
     energy += 0.5 * k * gap * gap
     g0 = add(g0, scale(k * gap, f1))
     g1 = add(g1, scale(k * gap, f0))
-    for p in range(3):
-        for q in range(3):
-            h_f[p, q] += k * f1[p] * f1[q]
-            h_f[p, 3 + q] += k * f1[p] * f0[q]
-            h_f[3 + p, q] += k * f0[p] * f1[q]
-            h_f[3 + p, 3 + q] += k * f0[p] * f0[q]
-        if exact:
-            h_f[p, 3 + p] += k * gap
-            h_f[3 + p, p] += k * gap
+    shear_outer(f0, f1, k, k * gap, exact, h_f)
     return energy, g0, g1
 
 
@@ -165,6 +157,35 @@ def dissipation_energy(x, faces, dr_inv, area, coef, base):
         g2 = dot(f0, f1) - base[t, 2]
         total += 0.5 * area[t] * (coef[t, 0] * g0 * g0 + coef[t, 1] * g1 * g1
                                   + coef[t, 2] * g2 * g2)
+    return total
+
+
+@njit(cache=True)
+def plate_dissipation(x, base, ptr, col, coef, slots, grad, values):
+    """½ Σ_c (x − b)_cᵀ C (x − b)_c with C (CSR ptr, col, coef); with grad of rows, adds its
+    gradient C(x − b) to grad (N, 3) and C's entries to the diagonals of the blocks
+    values[slots]."""
+    total = 0.0
+    add = grad.shape[0] > 0
+    for i in range(x.shape[0]):
+        q0 = q1 = q2 = 0.0
+        for k in range(ptr[i], ptr[i + 1]):
+            j = col[k]
+            c = coef[k]
+            q0 += c * (x[j, 0] - base[j, 0])
+            q1 += c * (x[j, 1] - base[j, 1])
+            q2 += c * (x[j, 2] - base[j, 2])
+            if add:
+                block = values[slots[k]]
+                block[0, 0] += c
+                block[1, 1] += c
+                block[2, 2] += c
+        total += 0.5 * ((x[i, 0] - base[i, 0]) * q0 + (x[i, 1] - base[i, 1]) * q1
+                        + (x[i, 2] - base[i, 2]) * q2)
+        if add:
+            grad[i, 0] += q0
+            grad[i, 1] += q1
+            grad[i, 2] += q2
     return total
 
 
@@ -234,10 +255,8 @@ class StrainDissipation:
         (x − b)_cᵀ β k_b Q (x − b)_c with constant Hessian β k_b Q/ĥ."""
         if self.plate is not None:
             ptr, col, _ = self.plate
-            if values is not None:
-                for p in range(3):
-                    values[self.plate_slots, p, p] += self.plate_coef
-            return hessian_gradient(x - self.plate_base, ptr, col, self.plate_coef, grad)
+            return plate_dissipation(x, self.plate_base, ptr, col, self.plate_coef,
+                                     self.plate_slots, grad, NO_BLOCKS if values is None else values)
         if values is None:
             return dihedral_total_energy(x, self.hinge, self.angle, self.bend_coef)
         return dihedral_assemble(x, self.hinge, self.angle, self.bend_coef, self.hinge_slots,

@@ -67,12 +67,13 @@ class Membrane(Term):
 
 
 class NodalMembrane(Term):
-    """Σ_v A_v Ψ(C_v), C_v the metric FᵀF averaged over vertex v's third of its triangles;
-    its stencils couple a vertex with its two-ring."""
+    """Σ_v A_v Ψ(C_v), C_v the metric FᵀF averaged over vertex v's third of its triangles
+    (``cells``: a cell per vertex and panel, :func:`~clothtool.sim.energies.membrane_nodal.
+    nodal_operator`); its stencils couple a vertex with its two-ring."""
 
-    def __init__(self, faces, dr_inv, area, n, stretch, shear):
+    def __init__(self, faces, dr_inv, area, n, stretch, shear, cells=None):
         self.faces, self.dr_inv = faces, dr_inv
-        self.operator = nodal_operator(faces, dr_inv, area, n, stretch, shear)
+        self.operator = nodal_operator(faces, dr_inv, area, n, stretch, shear, cells)
         self.elements = nodal_pairs(*self.operator[:2])
 
     def bind(self, pattern):
@@ -87,23 +88,42 @@ class NodalMembrane(Term):
 
 
 class PlateBending(Term):
-    """½ Σ_c x_cᵀ (k_b Q) x_c, Q in CSR (ptr, col, val) with k_b folded in; constant Hessian."""
+    """½ Σ_c x_cᵀ (k_b Q) x_c, Q in CSR (ptr, col, val) with k_b folded in; constant Hessian.
 
-    def __init__(self, plate, n):
+    ``matrix``: the CSR that goes into the solver's matrix instead of Q (None: Q). The
+    corrected plate (``material.plate_correction``) puts its Q + C in ``plate`` and its Q here:
+    C couples a vertex with its three-ring, which would double the matrix (and the cost of
+    each PCG product); Newton takes the steps of the PSD Q ⪯ Q + C, which the line search on
+    the exact energy keeps descending (:mod:`clothtool.sim.energies.plate`)."""
+
+    def __init__(self, plate, n, matrix=None):
         self.plate = plate
-        ptr, col, _ = plate
+        self.matrix = plate if matrix is None else matrix
+        ptr, col, _ = self.matrix
         self.elements = np.stack([np.repeat(np.arange(n), np.diff(ptr)), col], axis=1)
 
     def constant(self, pattern, values):
         slot = pattern.slots(self.elements)[:, 1]
         for p in range(3):
-            values[slot, p, p] += self.plate[2]
+            values[slot, p, p] += self.matrix[2]
 
     def energy(self, x):
         return hessian_gradient(x, *self.plate, NO_GRADIENT)
 
     def assemble(self, x, grad, values):
         return hessian_gradient(x, *self.plate, grad)
+
+    def unassembled(self):
+        """(3N × 3N scipy CSR) (Q + C − Q) ⊗ I₃: the Hessian the solver's matrix leaves out
+        (None when there is none), for the direct solve of statics."""
+        if self.matrix is self.plate:
+            return None
+        import scipy.sparse as sps
+
+        n = len(self.plate[0]) - 1
+        full, part = (sps.csr_matrix((v, c, p), shape=(n, n)) for p, c, v in (self.plate,
+                                                                             self.matrix))
+        return sps.kron(full - part, sps.eye(3), format="csr")
 
 
 class DihedralBending(Term):

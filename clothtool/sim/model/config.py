@@ -227,7 +227,8 @@ class Material(Section):
     [warp, weft]) may replace ``bend``: k_b = ρ g c³ with g = 9.81 m/s².
     ``membrane_model``: stretch and shear per ``triangle`` (linear elements), or ``nodal``:
     warp and weft stretch on each vertex's smoothed metric FᵀF (which locks less when the
-    sheet bends off the mesh's lines) and shear per triangle; implicit method only.
+    sheet bends off the mesh's lines) and shear per triangle (implicit method; the others
+    and a mesh resting curved without uv keep ``triangle``).
     ``preset`` (a measured fabric, :mod:`clothtool.fabrics`) and ``kes`` (KES-F values,
     :mod:`clothtool.lab_units`) fill the keys the section does not give; ``kes`` wins
     over ``preset``.
@@ -253,7 +254,8 @@ class Material(Section):
                                   "edge) ([Textile units](#textile-units-and-tests)); 0 turns "
                                   "bending off")
     damping: float = setting(0.01, non_negative,
-                             "s, stiffness-proportional (Rayleigh) damping; 0 = none")
+                             "s, β of the damping (`damping_model`: of the strains' change, "
+                             "or stiffness-proportional); 0 = none")
     bend_model: str = setting("hessian", choice(BEND_MODELS),
                               "`hessian` (plate bending with the stated rigidity on any mesh "
                               "that rests flat, with or without uv, panels of their own bend "
@@ -262,26 +264,35 @@ class Material(Section):
                               "model: soft on a grid, stiff on other meshes: the "
                               "cantilever table) or `quadratic` (its linearisation; flat rest states "
                               "only); [Textile units](#textile-units-and-tests)")
-    damping_model: str = setting("frozen", choice(DAMPING_MODELS),
-                                 "`frozen`: D = βK(x_n)/ĥ, the stiffness at the start of the "
-                                 "step, which resists rigid rotation; `strain` (implicit "
-                                 "only): stretch, shear and bending damped by the "
+    damping_model: str = setting("strain", choice(DAMPING_MODELS),
+                                 "`strain`: stretch, shear and bending damped by the "
                                  "dissipation potential of their change over the step, "
-                                 "which no rigid motion feels (a sheet on a turntable "
-                                 "follows it, a crumpled start relaxes as at small steps; "
-                                 "more Newton steps than `frozen`; see Time stepping)")
+                                 "which no rigid motion feels (a sheet on a turning sphere "
+                                 "follows it, a crumpled start relaxes at one step per "
+                                 "frame, a hanging sheet swings; the other methods damp "
+                                 "with their own βK); `frozen`: D = βK(x_n)/ĥ, the "
+                                 "stiffness at the start of the step, which resists "
+                                 "rotation (the cloth creeps: fewer Newton steps; see Time "
+                                 "stepping)")
     bending_length: float | tuple | None = setting(None, pair_or_number(exclusive=True),
                                                    "m, instead of `bend`: the cantilever test's "
                                                    "bending length c (or `[warp, weft]`), "
                                                    "`bend` = `density` · 9.81 · c³ (giving "
                                                    "both is an error)")
+    plate_correction: bool = setting(False, flag,
+                                     "`hessian` bending: correct the smoothing of each vertex's "
+                                     "Hessian estimate (a fourth-order term, β h²‖∇Ĥ‖²), so that "
+                                     "folds a few triangles wide keep their bending energy on a "
+                                     "coarse mesh ([Textile units](#textile-units-and-tests))")
     membrane_model: str = setting("triangle", choice(MEMBRANE_MODELS),
                                   "`triangle` (stretch and shear per linear triangle) or "
                                   "`nodal`: warp and weft stretch on each vertex's smoothed "
                                   "metric FᵀF, shear per triangle, so the drape depends less on "
-                                  "the mesh (the drape table's spread between a grid, a turned "
-                                  "grid and a Delaunay mesh). Needs a rest pattern per vertex (a "
-                                  "grid, or a PLY with uv) and `solver.method: implicit`")
+                                  "the mesh (linear triangles lock where a fold crosses them). "
+                                  "Any mesh that rests flat, with uv or without (its own plane), "
+                                  "garment panels included (a seam vertex has a cell in each "
+                                  "panel); a mesh resting curved without uv and the methods "
+                                  "other than `implicit` keep `triangle`")
     preset: str | None = setting(None, one_word,
                                  "a measured fabric (Wang et al. 2011, as ARCSim ships them): "
                                  "its density, stretch, shear and bend fill the keys not given "

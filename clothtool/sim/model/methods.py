@@ -77,8 +77,9 @@ METHODS = {m.name: m for m in (
 
 def requested_features(config, given=()):
     """(feature, config key) for each optional feature a :class:`~clothtool.sim.model.config.Config`
-    asks for; ``given``: the dotted keys the config file sets (a default ``bdf2`` is not a
-    request: the methods without it step by their own first-order scheme)."""
+    asks for; ``given``: the dotted keys the config file sets (a default ``bdf2`` or
+    ``strain`` damping is not a request: the methods without it step by their own
+    first-order scheme and damp with their own βK)."""
     out = []
     if config.solver.integrator == "bdf2" and "solver.integrator" in given:
         out.append((BDF2, "solver.integrator: bdf2"))
@@ -100,13 +101,20 @@ def requested_features(config, given=()):
     for name, panel in config.materials.items():
         if panel.damping is not None and panel.damping != config.material.damping:
             out.append((PANEL_DAMPING, f"materials.{name}.damping"))
-    if config.material.damping_model == "strain":
+    if config.material.damping_model == "strain" and "material.damping_model" in given:
         out.append((STRAIN_DAMPING, "material.damping_model: strain"))
     if config.mesh.seams:
         out.append((SEAMS, "mesh.seams"))
     if config.scene.attach:
         out.append((ATTACH, "scene.attach"))
     return out
+
+
+def strain_damped(config):
+    """Does the config's method damp by the strains' change (``material.damping_model:
+    strain``, the default)? The others damp with their own βK(x_n)."""
+    return config.material.damping_model == "strain" and STRAIN_DAMPING in METHODS[
+        config.solver.method].supports
 
 
 def barrier_contact(config):

@@ -16,13 +16,12 @@ and sets v_{n+1} = (x − b)/ĥ, where W is the method's elastic energy
   v_{n−1} from the State. The first step has no past and invents none: it is a one-step
   second-order method, two stages of SDIRK2 (:meth:`NewtonIntegrator.first_step`).
 
-Damping (β = material.damping seconds): with ``material.damping_model: frozen`` (the
-default), Φ = 0 and D = (β/ĥ) K is stiffness-proportional (Rayleigh)
+Damping (β = material.damping seconds): with ``material.damping_model: strain`` (the
+default), D = 0 and Φ is the dissipation potential of the change of stretch, shear and
+bending over the step (:mod:`clothtool.sim.energies.dissipation`), which no rigid motion
+changes; with ``frozen``, Φ = 0 and D = (β/ĥ) K is stiffness-proportional (Rayleigh)
 damping with K the PSD-projected elastic Hessian at x_n (Baraff & Witkin 1998), so that the
-damping force is −βK v_{n+1} with the integrator's own velocity (per panel: Σ_e β_e K_e);
-with ``strain``, D = 0 and Φ is the dissipation potential of the change of stretch, shear
-and bending over the step (:mod:`clothtool.sim.energies.dissipation`), which no rigid
-motion changes.
+damping force is −βK v_{n+1} with the integrator's own velocity (per panel: Σ_e β_e K_e).
 Collider friction uses ĥ the same way (:mod:`clothtool.contact.projection`). Each piece of
 E is a term of :mod:`clothtool.sim.solve.potential`; the loop sums their list.
 

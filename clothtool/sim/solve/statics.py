@@ -3,7 +3,7 @@
 Minimises the potential Π(x) = W(x) − Σ_v m_v g·x_v over the free vertices (pinned ones stay
 at their initial positions), W the implicit method's elastic energy
 (:class:`~clothtool.sim.energies.energy.FemElastic`), by Newton's method with the PSD-projected
-Hessian, a direct sparse solve (scipy) and a backtracking line search, with gravity applied
+Hessian (the corrected plate's whole Q + C, which the time steppers' matrix leaves out), a direct sparse solve (scipy) and a backtracking line search, with gravity applied
 in ``load_steps`` equal increments (each one's minimum starts the next: large deflections,
 such as a cantilever at three bending lengths, converge from the flat state). No colliders.
 The textile tests (cantilever, hanging strip, drape) use it in place of a long damped run.
@@ -35,6 +35,8 @@ def static_equilibrium(model, x=None, *, tolerance=1e-6, max_iterations=100, loa
     grad = np.zeros((n, 3))
     matrix = BlockMatrix(model.pattern)
     extent = float(np.ptp(model.mesh.rest3d, axis=0).max())
+    extra = [t.unassembled() for t in energy.terms if hasattr(t, "unassembled")]
+    extra = sum(e for e in extra if e is not None)  # the corrected plate's C (terms.PlateBending)
     for step in range(1, load_steps + 1):
         load = weight * (step / load_steps)
 
@@ -43,7 +45,7 @@ def static_equilibrium(model, x=None, *, tolerance=1e-6, max_iterations=100, loa
 
         for _ in range(max_iterations):
             energy.assemble(x, grad, matrix.values)
-            k = matrix.to_scipy()[free][:, free]
+            k = (matrix.to_scipy() + extra)[free][:, free]
             shift = RIDGE * float(np.abs(k.diagonal()).max() or 1.0)
             g = (grad - load).ravel()[free]
             if np.abs(g).max() <= tolerance * np.abs(load).max():
