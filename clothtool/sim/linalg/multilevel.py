@@ -143,7 +143,7 @@ class ModeMultigrid:
         self.q[:] = self.q0
         self.q[held] = 0.0
         galerkin(matrix.row_ptr, matrix.col, matrix.values, held, self.slot0, self.q,
-                      self._level(0)[2])
+                 self._level(0)[2])
         for c in range(len(self.sizes)):
             level = self._level(c)
             if c > 0:
