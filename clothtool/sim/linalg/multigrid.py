@@ -82,16 +82,10 @@ class Hierarchy:
         self.z = np.zeros((self.node_off[-1], 3))
         self.t = np.zeros((self.node_off[-1], 3))
         self.inverse = np.zeros((0, 3, 3))  # the V-cycle has its own diagonal inverses
-        # the tuple the numba kernels take (NO_MULTIGRID has the same layout, no levels)
+        # the tuple the numba kernels take
         self.arrays = (self.node_off, self.block_off, self.row_ptr, self.row_off, self.col,
                        self.agg, self.slot_map, self.values, self.diag_inv, self.coarsest, self.r,
                        self.z, self.t)
-
-
-NO_MULTIGRID = (np.zeros(1, np.int64), np.zeros(1, np.int64), np.zeros(1, np.int64),
-                np.zeros(1, np.int64), np.zeros(0, np.int64), np.zeros(0, np.int64),
-                np.zeros(0, np.int64), np.zeros((0, 3, 3)), np.zeros((0, 3, 3)), np.zeros((0, 0)),
-                np.zeros((0, 3)), np.zeros((0, 3)), np.zeros((0, 3)))
 
 
 @njit(cache=True)

@@ -44,18 +44,6 @@ COARSEST = 16  # nodes at which the hierarchy stops (a dense Cholesky of ≤ 8·
 STIFF = 1e8
 
 
-def _empty(*shape):
-    return np.zeros(shape)
-
-
-# the layout of ModeMultigrid.modes, without levels (the other preconditioners pass it)
-NO_MODES = (_empty(0, 3, M), np.zeros(0, np.int64), _empty(0, 3, 3), np.zeros(1, np.int64),
-            np.zeros(1, np.int64), np.zeros(1, np.int64), np.zeros(0, np.int64),
-            np.zeros(0, np.int64), _empty(0, M, M), _empty(0, M, M),
-            _empty(0, M, M), np.zeros(0, np.int64), _empty(0, 0), np.zeros(0, np.int64),
-            _empty(0, M), _empty(0, M), _empty(0, M), _empty(0, 3), np.zeros(0, np.int64))
-
-
 class ModeMultigrid:
     """The levels of a mesh's mode multigrid, flattened into arrays for numba (:attr:`modes`).
 
@@ -64,7 +52,7 @@ class ModeMultigrid:
     of the coarse arrays, blocks block_off[c]:block_off[c+1] and its CSR row pointers at
     row_off[c] (local indices)."""
 
-    inverse = _empty(0, 3, 3)  # what the other preconditioners pass to PCG
+    inverse = np.zeros((0, 3, 3))  # block Jacobi's inverses, unused here
 
     def __init__(self, pattern, faces):
         triangles = BlockPattern(pattern.n, faces)
