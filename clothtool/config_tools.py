@@ -96,6 +96,8 @@ solver:
   newton_iterations: 20 # Newton steps per solver step, at most (1 = Baraff–Witkin's linearised step)
   newton_tolerance: 0.04  # m/s, Newton stops when the largest velocity correction max|Δx|/h is below
   friction_velocity: 1.0e-4  # m/s, contact friction holds below this sliding speed (IPC's ε_v)
+  overshoot_bound: false  # contact friction: a slip a Newton step turned over takes the bound's curvature
+  forcing_from_second: false  # contact: the linear solves' Eisenstat–Walker ratio starts at Newton's second iterate
   line_search: true     # backtracking line search on the Newton steps
   max_speed: 1000.0     # m/s, a faster vertex counts as a blow-up (exit code 3)
   iterations: 10        # pbd, xpbd, projective, vbd: constraint sweeps / local-global iterations / vertex sweeps per step

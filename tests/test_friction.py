@@ -18,7 +18,7 @@ from clothtool.contact.barrier import (EDGE_EDGE, POINT_PLANE, POINT_TRIANGLE, c
                                        pair_geometry)
 from clothtool.contact.friction import (bound_reversed_slips, f0, f1, friction_assemble,
                                         friction_energy, friction_lag, reference_slips,
-                                        tangent_basis)
+                                        slip_overshoots, tangent_basis)
 
 
 def dense_friction_hessian(rows, weights, blocks, count, n):
@@ -405,7 +405,8 @@ def test_reversed_slips_get_the_half_quadratic_bound_and_the_rest_keep_their_blo
     blocks = np.zeros((count, 3, 3))
     friction_assemble(x, base, h_eff, eps_v, *lag, count, n, np.zeros((len(x), 3)), blocks)
     bounded = blocks.copy()
-    got = bound_reversed_slips(x, base, h_eff, eps_v, *lag, count, n, ref, bounded)
+    got = bound_reversed_slips(x, base, h_eff, eps_v, *lag, count, n, ref,
+                               np.zeros(count, np.bool_), bounded)
     want = 0
     for k in range(count):
         v = slip(x, base, h_eff, lag, k)
@@ -420,3 +421,43 @@ def test_reversed_slips_get_the_half_quadratic_bound_and_the_rest_keep_their_blo
         else:
             np.testing.assert_array_equal(bounded[k], blocks[k])
     assert got == want > 0
+
+
+@settings(max_examples=30, deadline=None)
+@given(seed=st.integers(0, 2**31), step=st.floats(0.1, 1.0))
+def test_slip_overshoots_marks_sliding_pairs_a_step_turns_over_and_the_bound_takes_them(seed, step):
+    """slip_overshoots marks each pair that slides at y (‖v‖ ≥ ε_v) and whose slip at
+    y + step·dy points against it, keeps earlier marks, and counts the new ones; a marked
+    pair takes the half-quadratic bound in bound_reversed_slips even along its reference."""
+    rng = np.random.default_rng(seed)
+    n, n_held, count, eps_v, h_eff = 8, 3, 12, 1e-2, 1.0 / 90.0
+    y = rng.normal(size=(n + n_held, 3))
+    base = y - h_eff * rng.normal(size=y.shape)
+    lag = random_lag(rng, n, n_held, count, eps_v, h_eff, "mixed", y, base)
+    rows, weights, bases, mu_lambda, c = lag
+    dy = 3.0 * h_eff * rng.normal(size=y.shape)
+    overshot = np.zeros(count, np.bool_)
+    overshot[0] = True  # marked by an earlier step of the same lag
+    got = slip_overshoots(y, dy, step, base, h_eff, eps_v, rows, weights, bases, c, count, n,
+                          overshot)
+    want = np.zeros(count, np.bool_)
+    want[0] = True
+    for k in range(1, count):
+        v0, v1 = slip(y, base, h_eff, lag, k), slip(y + step * dy, base, h_eff, lag, k)
+        want[k] = np.linalg.norm(v0) >= eps_v and v0 @ v1 < 0.0
+    np.testing.assert_array_equal(overshot, want)
+    assert got == want[1:].sum()
+    u = (y[:n] - base[:n]) / h_eff
+    ref = reference_slips(u, rows, weights, bases, c, count, n)  # every slip along its own
+    blocks = np.zeros((count, 3, 3))
+    friction_assemble(y, base, h_eff, eps_v, *lag, count, n, np.zeros((len(y), 3)), blocks)
+    bounded = blocks.copy()
+    bound_reversed_slips(y, base, h_eff, eps_v, *lag, count, n, ref, overshot, bounded)
+    for k in range(count):
+        v = slip(y, base, h_eff, lag, k)
+        if overshot[k] and np.linalg.norm(v) >= eps_v:
+            tt = bases[k] @ bases[k].T
+            np.testing.assert_allclose(bounded[k], mu_lambda[k] / (h_eff * np.linalg.norm(v)) * tt,
+                                       rtol=1e-12)
+        else:
+            np.testing.assert_array_equal(bounded[k], blocks[k])

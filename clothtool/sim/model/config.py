@@ -722,6 +722,16 @@ class Solver(Section):
                                        "m/s, IPC's ε_v: contact friction holds below this "
                                        "sliding speed (it creeps at most at ε_v where Coulomb's "
                                        "law sticks)")
+    overshoot_bound: bool = setting(False, flag,
+                                    "contact friction: a pair whose slip a Newton step turned "
+                                    "to the other side takes the curvature of the "
+                                    "half-quadratic bound of ‖v‖ for the rest of the step's "
+                                    "lag (fewer Newton steps at stick–slip)")
+    forcing_from_second: bool = setting(False, flag,
+                                        "contact: Eisenstat–Walker's ratio starts at Newton's "
+                                        "second iterate (the step's start is no iterate of "
+                                        "the minimisation), so the second PCG solve asks "
+                                        "for 0.15")
     line_search: bool = setting(True, flag,
                                 "halve a Newton step until the incremental potential does not "
                                 "increase")

@@ -47,7 +47,7 @@ from clothtool.contact.barrier import (POINT_PLANE, barrier_blocks, contact_asse
 from clothtool.contact.broadphase import contact_stencils
 from clothtool.contact.ccd import collision_free_step, near_pairs
 from clothtool.contact.friction import (bound_reversed_slips, friction_assemble, friction_energy,
-                                       friction_lag, reference_slips)
+                                       friction_lag, reference_slips, slip_overshoots)
 from clothtool.contact.intersect import intersecting_pairs
 from clothtool.contact.pieces import cloth_pieces, slide_velocity
 from clothtool.errors import InputError, NumericalError
@@ -107,8 +107,9 @@ def _lagged_pairs(k):
 class BarrierContact:
     """The contact term of one run's Newton integrator (workspace only, see module)."""
 
-    def __init__(self, scene, mass, free, h, stiffness, friction_velocity):
+    def __init__(self, scene, mass, free, h, stiffness, friction_velocity, overshoot_bound=False):
         self.scene = scene
+        self.overshoot_bound = overshoot_bound  # solver.overshoot_bound
         self.h = h
         n, total = scene.n_cloth, scene.n_total
         self.kappa = KAPPA * max(float(np.mean(mass)) / (h * h), stiffness)
@@ -145,6 +146,8 @@ class BarrierContact:
         self.base, self.h_eff = None, h
         self.lag = _lagged_pairs(0)
         self.n_lag = 0
+        self.overshot = np.zeros(0, np.bool_)  # lagged pairs a Newton step turned over
+        self.iterate = 0  # Newton iterates assembled in the step
 
     # ------------------------------------------------------------------ candidates
 
@@ -307,6 +310,7 @@ class BarrierContact:
             self.velocity[n:] = expected[n:] / self.h
             self.field[n:], self.rigid[n:] = colliders.fields(t + self.h)
         self._ensure(self.y, expected)
+        self.iterate = 0
         if self.friction:
             self.base, self.h_eff = base, h_eff
             self._live_motion = False
@@ -324,6 +328,7 @@ class BarrierContact:
                                   self.velocity, self.field, self.rigid, sc.n_cloth, *self.lag)
         rows, w, bases, _, c = self.lag
         self.reference = reference_slips(u, rows, w, bases, c, self.n_lag, sc.n_cloth)
+        self.overshot = np.zeros(self.n_lag, np.bool_)
 
     def _friction_gradient(self, x):
         """∇D (N, 3) of the lagged pairs at cloth positions x."""
@@ -360,6 +365,7 @@ class BarrierContact:
         operator for the PCG (``operator``)."""
         n = self.scene.n_cloth
         self.y[:n] = x
+        self.iterate += 1
         energy, n_act, _ = self._assemble(self.y)
         grad += self._grad[:n]
         room = 3 * n_act + self.n_lag  # a pair and its tilt terms, and the friction pairs
@@ -378,7 +384,8 @@ class BarrierContact:
             energy += friction_assemble(x, self.base, self.h_eff, self.eps_v, rows, w, bases,
                                         mu_lambda, c, self.n_lag, n, grad, self._blocks[n_act:size])
             bound_reversed_slips(x, self.base, self.h_eff, self.eps_v, rows, w, bases, mu_lambda,
-                                 c, self.n_lag, n, self.reference, self._blocks[n_act:size])
+                                 c, self.n_lag, n, self.reference, self.overshot,
+                                 self._blocks[n_act:size])
         self.operator = pair_operator(self._rows, self._w, self._blocks, size, n)
         pairs_add_diagonal(self.operator, matrix.pattern.diag, matrix.values)
         return energy
@@ -393,11 +400,20 @@ class BarrierContact:
 
     def max_step(self, dx):
         """The collision-free fraction of the motion: the cloth by dx, the colliders the rest
-        of their way to their end-of-step positions."""
+        of their way to their end-of-step positions. With ``solver.overshoot_bound``, from the
+        step's second Newton iterate on, the sliding friction pairs whose slip it turns to the
+        other side are marked (``overshot``; the first iterate is x_n, where the integrator's
+        velocity is not the cloth's: BDF2 reads −v_n/2 there, and every slip would look
+        turned)."""
         n = self.scene.n_cloth
         self.dy[:n] = dx
         self.dy[n:] = 0.0 if self.target is None else self.target - self.y[n:]
-        return self._free_step()
+        step = self._free_step()
+        if self.overshoot_bound and self.n_lag and self.iterate > 1:
+            rows, w, bases, _, c = self.lag
+            slip_overshoots(self.y, self.dy, step, self.base, self.h_eff, self.eps_v, rows, w,
+                            bases, c, self.n_lag, n, self.overshot)
+        return step
 
     def add_collider_coupling(self, rhs):
         """rhs (N, 3) −= H_cX ΔX: the barrier's linearised response of the cloth to the rest of

@@ -38,9 +38,11 @@ but far from converged, and the velocity test alone stopped there (the cloth loc
 to a metre from the converged step after 0.5 s). It is inexact (Eisenstat &
 Walker 1996, "Choosing the forcing terms in an inexact Newton method"): the first
 PCG solves to ``solver.tolerance``, later ones to η = 0.9 (‖∇E_k‖/‖∇E_{k−1}‖)², at
-least ``solver.tolerance`` and at most 0.15, each warm-started from what the line
-search left of the previous step. A single Newton step (``newton_iterations: 1``) starts from x_n instead, with
-the PCG guess h v_n: that is exactly Baraff–Witkin's linearised step
+least ``solver.tolerance`` and at most 0.15 (with ``solver.forcing_from_second``, the second
+at 0.15 when Newton starts at x_n: that start is no iterate of the minimisation, and with
+friction BDF2's velocity there turns every slip), each warm-started from what the line
+search left of the previous step. A single Newton step (``newton_iterations: 1``) starts
+from x_n instead, with the PCG guess h v_n: that is exactly Baraff–Witkin's linearised step
 (M − h ∂f/∂v − h² ∂f/∂x) Δv = h (f + h ∂f/∂x v_n) for backward Euler.
 
 Vertices held by pins are constrained in the solve through the filter.
@@ -153,7 +155,7 @@ class NewtonIntegrator(Integrator):
         if model.contact is not None:  # mesh colliders and self-collision
             contact = BarrierContact(model.contact, model.mass, model.free, h,
                                      max(model.tri_stretch[:, :2].max(), model.tri_shear.max()),
-                                     solver.friction_velocity)
+                                     solver.friction_velocity, solver.overshoot_bound)
             contact.check_initial(model.mesh.positions)
             terms.append(Contact(contact))
         return terms
@@ -292,7 +294,12 @@ class NewtonIntegrator(Integrator):
                 # forcing term with no PCG iteration, so Newton repeated it until it gave up
                 dx = np.zeros_like(dx) if cut else (1.0 - step) * dx
                 forcing = eisenstat_walker(g_norm, g_prev, forcing, solver.tolerance)
-            g_prev = g_norm
+            # solver.forcing_from_second: a stage from the state (contact) starts the ratios at
+            # its second iterate: x_n is where collision-freedom puts Newton, not a step of its
+            # minimisation (there BDF2's velocity turns every friction slip, and the first
+            # ratio set a 3× longer solve)
+            skip = it == 0 and stage.from_state and solver.forcing_from_second
+            g_prev = 0.0 if skip else g_norm
             prescribed = self._behind(x) > REACHED  # moves with this step
             rhs = -grad
             if it > 0 and float(np.sum(rhs * dx)) < 0.0:
