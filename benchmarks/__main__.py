@@ -8,6 +8,7 @@
     python -m benchmarks textile         # cantilever, hanging strip, drape; what bending costs
     python -m benchmarks peers           # Blender's cloth and NVIDIA Newton's VBD on our scenes
     python -m benchmarks fit             # clothtool fit: known answers, another mesh, Blender
+    python -m benchmarks linalg          # preconditioners' phases; the step vs earlier commits
     python -m benchmarks --full [NAMES]  # the long cases too (benchmarks/common.py: FULL), and
                                          # the benchmarks of FULL_ONLY
 """
@@ -20,8 +21,9 @@ import time
 
 # Run only under --full or when named: the peers take minutes each (Newton's twist alone
 # about 5 minutes of CPU) and need their own venvs; the fits run hundreds of simulations;
-# drape_mesh runs the Cusick test some sixty times (4 mm discs included).
-FULL_ONLY = ("bench_peers", "bench_fit", "bench_drape_mesh")
+# drape_mesh runs the Cusick test some sixty times (4 mm discs included); the linear solve's
+# runs a 256² sheet on three trees.
+FULL_ONLY = ("bench_peers", "bench_fit", "bench_drape_mesh", "bench_linalg")
 
 
 def main(argv):

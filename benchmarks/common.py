@@ -111,14 +111,15 @@ def write_csv(path, rows, columns):
         w.writerows(rows)
 
 
-def median_seconds(fn, repeat=7):
-    """Median wall time of ``repeat`` calls of ``fn()`` after one untimed call (warm-up, compile)."""
+def median_seconds(fn, repeat=7, clock=time.perf_counter):
+    """Median time of ``repeat`` calls of ``fn()`` after one untimed call (warm-up, compile):
+    wall time, or CPU time with ``clock=time.process_time``."""
     fn()
     times = []
     for _ in range(repeat):
-        started = time.perf_counter()
+        started = clock()
         fn()
-        times.append(time.perf_counter() - started)
+        times.append(clock() - started)
     return statistics.median(times)
 
 

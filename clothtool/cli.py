@@ -153,7 +153,7 @@ def runs_bar(quiet, slurm, desc):
     from tqdm import tqdm
 
     tqdm.monitor_interval = 0
-    bar = tqdm(desc=desc, unit="run", file=sys.stderr)
+    bar = tqdm(desc=desc, unit="run", file=sys.stderr)  # no total: bool(bar) raises, test `is None`
     try:
         yield bar
     finally:
@@ -584,7 +584,7 @@ def sweep(base, output, grid, zipped, random, ranges, seed, settings, jobs, slur
         result = run_sweep(base, output, grid=list(grid), zip=list(zipped), random=random,
                            ranges=list(ranges), seed=seed, settings=list(settings), jobs=jobs,
                            slurm=slurm, per_task=per_task, analyze=analyze, fields=fields,
-                           retry_failed=retry_failed, on_done=bar and (lambda r, s: bar.update()))
+                           retry_failed=retry_failed, on_done=None if bar is None else (lambda r, s: bar.update()))
     if not quiet or slurm:
         click.echo(result.describe())
     if result.failed and not slurm:
@@ -609,7 +609,7 @@ DIR/fit.csv (a row per simulation), DIR/fit.png, DIR/runs/ (each round a sweep).
 """ + EXIT_CODES_HELP
 
 OPTIONS.update({"capture": "--target", "compare": "--compare", "outliers": "--outliers",
-                "max_simulations": "--max-simulations"})
+                "max_simulations": "--max-simulations", "scan": "--scan"})
 
 
 @main.command(epilog=FIT_EPILOG)
@@ -631,6 +631,10 @@ OPTIONS.update({"capture": "--target", "compare": "--compare", "outliers": "--ou
 @click.option("--register/--no-register", default=True, show_default=True,
               help="Move the capture rigidly so that its frame 0 lies nearest the config's "
                    "initial state (a capture in another frame, or slightly off).")
+@click.option("--scan", default=0, show_default=True, type=int, metavar="N",
+              help="First simulate N values of each key across its range (N^keys simulations, "
+                   "one round) and start from the nearest to the capture (keys with local "
+                   "minima, such as friction).")
 @click.option("--max-simulations", default=40, show_default=True, type=int,
               help="Stop after this many simulations with the best so far.")
 @click.option("--compare-strain", is_flag=True,
@@ -638,7 +642,7 @@ OPTIONS.update({"capture": "--target", "compare": "--compare", "outliers": "--ou
                    "report the per-triangle stretch difference.")
 @QUIET
 def fit(config, target, ranges, output, settings, jobs, slurm, compare, outliers, register,
-        max_simulations, compare_strain, quiet):
+        scan, max_simulations, compare_strain, quiet):
     """Fit material values so that the simulation of CONFIG moves as a captured sequence
     did (scipy's trust-region least squares, finite-difference Jacobian in log space).
 
@@ -650,10 +654,10 @@ def fit(config, target, ranges, output, settings, jobs, slurm, compare, outliers
 
     with runs_bar(quiet, slurm, "fit") as bar:
         result = run_fit(config, list(target), list(ranges), output, settings=list(settings),
-                         compare=compare, outliers=outliers, register=register, jobs=jobs,
-                         slurm=slurm,
+                         compare=compare, outliers=outliers, register=register, scan=scan,
+                         jobs=jobs, slurm=slurm,
                          max_simulations=max_simulations, compare_strain=compare_strain,
-                         on_done=bar and (lambda r, s: bar.update()),
+                         on_done=None if bar is None else (lambda r, s: bar.update()),
                          log=None if quiet else (
                              (lambda line: bar.write(line, file=sys.stderr)) if bar is not None
                              else (lambda line: click.echo(line, err=True))))

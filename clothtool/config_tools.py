@@ -48,12 +48,12 @@ material:
   rest_stretch: 1.0     # rest length factors b_u, b_v: one number or [b_u, b_v]; 1.1 = rests 10 % longer
   shear: 50.0           # N/m, in-plane shear stiffness
   bend: 1.0e-5          # N·m, flexural rigidity: one number or [warp, weft] (or bending_length: c in m, bend = ρ g c³)
-  damping: 0.01         # s, stiffness-proportional damping; 0 = none
+  damping: 0.01         # s, β of the damping (damping_model); 0 = none
   bend_model: hessian   # hessian (plate: the stated rigidity on any flat-resting mesh), dihedral (hinges) or quadratic
   damping_model: strain # strain (stretch, shear and bending damped by their change over the step: a rigid motion feels none; the other methods use their own βK) or frozen (βK at the step's start: resists rotation, the cloth creeps)
   bending_length: null  # m, instead of bend: the cantilever test's c, bend = density · 9.81 · c³
   plate_correction: false  # hessian plate: add back the energy its smoothing loses (folds a few triangles wide)
-  membrane_model: triangle  # triangle, or nodal (stretch smoothed per vertex: drapes alike on any mesh)
+  membrane_model: triangle  # triangle, or nodal (stretch smoothed per vertex and panel: drapes alike on any mesh)
   preset: null          # a measured fabric (clothtool fabric --list): fills the keys not given here
   kes: null             # KES-F values {B: gf·cm²/cm, G: gf/cm·deg, EMT: %, W: mg/cm²} for those keys
   # stiffnesses are per unit area (energy density integrated over the rest area), so

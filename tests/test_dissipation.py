@@ -114,6 +114,16 @@ def test_first_order_it_is_the_frozen_stretch_damping():
         assert element(base + d.reshape(3, 3), length)[0] == pytest.approx(quadratic, rel=20 * eps)
 
 
+def assert_gradient_is_central_differences(term, x, grad):
+    """``grad`` against central differences of ``term.energy`` at ``x`` (steps of 1e-7)."""
+    fd = np.empty(x.size)
+    for i in range(x.size):
+        d = np.zeros(x.size)
+        d[i] = 1e-7
+        fd[i] = (term.energy(x + d.reshape(x.shape)) - term.energy(x - d.reshape(x.shape))) / 2e-7
+    np.testing.assert_allclose(grad.ravel(), fd, atol=1e-6 * np.abs(fd).max())
+
+
 def test_the_mesh_kernels_sum_the_elements_and_hinges():
     """Triangles (stretch, shear) and hinges (bending, the dihedral kernel with c → βc/ĥ and
     θ̄ → Θ): energy, gradient against central differences, projected Hessian blocks."""
@@ -138,12 +148,7 @@ def test_the_mesh_kernels_sum_the_elements_and_hinges():
     assert bending > 0.0
     assert total == pytest.approx(dissipation_energy(x, model.faces, model.dr_inv, model.area,
                                                      term.coef, term.base) + bending, rel=1e-12)
-    fd = np.empty(x.size)
-    for i in range(x.size):
-        d = np.zeros(x.size)
-        d[i] = 1e-7
-        fd[i] = (term.energy(x + d.reshape(x.shape)) - term.energy(x - d.reshape(x.shape))) / 2e-7
-    np.testing.assert_allclose(grad.ravel(), fd, atol=1e-6 * np.abs(fd).max())
+    assert_gradient_is_central_differences(term, x, grad)
     g, h = np.empty(9), np.empty((9, 9))
     dense = np.zeros((x.size, x.size))
     for t, f in enumerate(model.faces):
@@ -294,12 +299,7 @@ def test_the_plates_damping_is_its_own_matrix_and_turns_with_its_force():
     grad = np.zeros_like(x)
     matrix = BlockMatrix(model.pattern)
     term.assemble(x, grad, matrix.values)
-    fd = np.empty(x.size)
-    for i in range(x.size):
-        d = np.zeros(x.size)
-        d[i] = 1e-7
-        fd[i] = (term.energy(x + d.reshape(x.shape)) - term.energy(x - d.reshape(x.shape))) / 2e-7
-    np.testing.assert_allclose(grad.ravel(), fd, atol=1e-6 * np.abs(fd).max())
+    assert_gradient_is_central_differences(term, x, grad)
     v = rng.normal(size=x.shape)
     triangles = BlockMatrix(model.pattern)
     from clothtool.sim.energies.dissipation import strain_assemble

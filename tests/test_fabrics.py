@@ -289,9 +289,13 @@ def test_fit_drape_converges_on_a_known_curve(tmp_path, monkeypatch, target):
 
     monkeypatch.setattr(clothtool.sweeps, "sweep", fake_sweep)
     monkeypatch.setattr(drape_fit, "_coefficients", curve)
+    monkeypatch.setattr(drape_fit, "_discretisation_error", lambda material, fit: 0.004)
     fit = drape_fit.fit_drape(material(), target, tmp_path)
     assert abs(fit.coefficient - target) <= 0.005 and len(ran) <= 10
     assert fit.bend == pytest.approx(0.2 * 9.81 * fit.bending_length ** 3)
+    text = lab_sheet.fit_report(material(), fit)
+    assert f"{100 * fit.coefficient:.1f} % ± 0.4 (simulated on a 10 mm grid disc" in text
+    assert "the change from a 14 mm disc" in text
     config = load_config(tmp_path / "cusick.yaml")
     assert config.material.damping == 0.05 and len(config.scene.pins) > 0
 
@@ -323,6 +327,7 @@ def test_fit_drape_waits_for_slurm_and_goes_on_from_the_runs_on_disk(tmp_path, m
 
     monkeypatch.setattr(clothtool.sweeps, "sweep", fake_sweep)
     monkeypatch.setattr(drape_fit, "_coefficients", curve)
+    monkeypatch.setattr(drape_fit, "_discretisation_error", lambda material, fit: 0.004)
     first = drape_fit.fit_drape(material(), 0.6, tmp_path, slurm=True)
     assert first.sbatch.endswith("round_1/sweep.sbatch") and first.bend is None
     assert "rerun this command" in lab_sheet.fit_report(material(), first)
@@ -351,3 +356,23 @@ def test_cusick_drape_of_a_stiff_and_a_limp_disc():
     stiff = cusick_drape({**base, "bending_length": 1.0}, 0.02, seconds=2.0)[0]
     limp = cusick_drape({**base, "bending_length": 0.005}, 0.02, seconds=2.0)[0]
     assert stiff > 0.97 and limp < 0.6
+
+
+def test_a_simulated_drape_reports_its_mesh_size_and_discretisation_error(monkeypatch):
+    """On a known second-order curve d(h) = 0.7 − 20 h², the error at 10 mm (0.2 points) is the
+    change from a disc √2 coarser; the report names the mesh and that disc."""
+    from clothtool.sim import textile
+
+    calls = []
+
+    def curve(material, spacing, kind="grid", **_):
+        calls.append((spacing, kind))
+        return 0.7 - 20.0 * spacing ** 2, None, None
+
+    monkeypatch.setattr(textile, "cusick_drape", curve)
+    drape = lab_sheet.simulated_drape(material())
+    assert drape.coefficient == pytest.approx(0.698) and drape.error == pytest.approx(0.002)
+    assert [s for s, _ in calls] == pytest.approx([0.01, 0.01 * 2 ** 0.5])
+    line = next(t for t in lab_sheet.report(material(), drape).splitlines() if "Cusick" in t)
+    assert "69.8 % ± 0.2 (simulated on a 10 mm grid disc; ± its discretisation error, the " \
+           "change from a 14 mm disc;" in line

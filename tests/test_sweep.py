@@ -154,6 +154,17 @@ def test_bad_input_is_one_line_and_writes_nothing(tmp_path, args, message):
     assert not (tmp_path / "runs").exists()
 
 
+def test_a_sweep_in_a_terminal_shows_its_progress_bar(tmp_path, monkeypatch):
+    """With stderr a terminal the sweep counts its runs on a bar (which has no total)."""
+    import clothtool.cli as cli
+
+    monkeypatch.setattr(cli, "_progress_enabled", lambda quiet: not quiet)
+    out = CliRunner().invoke(main, ["sweep", str(write_base(tmp_path)), "-o", str(tmp_path / "runs"),
+                                    "--grid", "material.bend=1e-5,2e-5"])
+    assert out.exit_code == 0, out.output
+    assert "2 runs, 2 done, 0 failed" in out.output and "sweep: 2run [" in out.output
+
+
 def test_a_combination_that_is_invalid_names_the_run(tmp_path):
     base = write_base(tmp_path)  # each value is valid alone; pbd has no bdf2
     result = CliRunner().invoke(main, ["sweep", str(base), "-o", str(tmp_path / "runs"), "--zip",

@@ -5,6 +5,8 @@ lab units (:func:`report`, :mod:`clothtool.lab_units`), its simulated Cusick dra
 :mod:`clothtool.sweeps.drape_fit`).
 """
 
+from dataclasses import dataclass
+
 from clothtool import fabrics
 from clothtool.errors import InputError
 from clothtool.lab_units import KES_B, bending_length, to_lab
@@ -13,19 +15,45 @@ SI_KEYS = ("density", "stretch", "rest_stretch", "shear", "bend", "damping", "be
            "damping_model", "membrane_model", "plate_correction")
 
 
-def simulated_drape(material, spacing=0.01):
-    """The Cusick drape coefficient of a material section, simulated
-    (:func:`clothtool.sim.textile.cusick_drape`, a grid disc of ``spacing`` m, damping
-    CUSICK_DAMPING so that it comes to rest)."""
-    from clothtool.sim.textile import CUSICK_DAMPING, cusick_drape
+SPACING = 0.01  # m, the Cusick disc's grid
+
+
+@dataclass
+class Drape:
+    """A simulated Cusick ``coefficient`` (a fraction), the grid ``spacing`` (m) of its disc
+    and its estimated discretisation ``error`` (a fraction; None: not estimated)."""
+
+    coefficient: float
+    spacing: float = SPACING
+    error: float | None = None
+
+    def describe(self):
+        """'74.1 % ± 0.6 (simulated on a 10 mm grid disc; ...)' for a report line."""
+        error = "" if self.error is None else f" ± {100 * self.error:.1f}"
+        coarse = "" if self.error is None else (
+            f"; ± its discretisation error, the change from a "
+            f"{1000 * 2 ** 0.5 * self.spacing:.0f} mm disc")
+        return (f"{100 * self.coefficient:.1f} %{error} (simulated on a {1000 * self.spacing:g} "
+                f"mm grid disc{coarse}; 30 cm disc on an 18 cm pedestal, damping 0.05 s, at "
+                "rest)")
+
+
+def simulated_drape(material, spacing=SPACING):
+    """The Cusick drape of a material section, simulated (:func:`clothtool.sim.textile.
+    cusick_drape`, a grid disc of ``spacing`` m, damping CUSICK_DAMPING, brought to rest),
+    with its discretisation error (:func:`clothtool.sim.textile.drape_error`): a
+    :class:`Drape`."""
+    from clothtool.sim.textile import CUSICK_DAMPING, cusick_drape, drape_error
 
     keys = {k: getattr(material, k) for k in SI_KEYS}
-    return cusick_drape({**keys, "damping": CUSICK_DAMPING}, spacing)[0]
+    keys = {**keys, "damping": CUSICK_DAMPING}
+    coefficient = cusick_drape(keys, spacing)[0]
+    return Drape(coefficient, spacing, drape_error(keys, spacing, coefficient))
 
 
 def report(material, drape=None):
     """A material section as a YAML ``material`` block (its SI keys) followed by comment lines
-    giving it in a lab's units (with ``drape``, its simulated Cusick drape coefficient) and,
+    giving it in a lab's units (with ``drape``, its simulated Cusick drape, a :class:`Drape`) and,
     for a preset, the fabric's measured rigidity at 45° and its Poisson coupling."""
     def g(value):
         return f"{value:.6g}"
@@ -46,8 +74,7 @@ def report(material, drape=None):
              f"#   G {lab['G']:.3g} gf/(cm·deg) (KES-F)",
              f"#   EMT {emt} % (the linear stretch at 500 gf/cm)"]
     if drape is not None:
-        lines.append(f"#   Cusick drape coefficient {100 * drape:.1f} % (simulated: 30 cm disc "
-                     "on an 18 cm pedestal, 10 mm grid, damping 0.05 s, 3 s at 60 fps)")
+        lines.append(f"#   Cusick drape coefficient {drape.describe()}")
     if material.preset is not None:
         use, fibres = fabrics.ARCSIM[material.preset][:2]
         b45 = fabrics.rigidities(material.preset)[1]
@@ -88,7 +115,8 @@ def fit_report(material, fit):
         lines.append(f"# a round waits for Slurm: {fit.sbatch}; rerun this command once it ended")
     if fit.bend is None:
         return "\n".join(lines)
-    lines.append(report(replace(material, bend=fit.bend), fit.coefficient))
+    lines.append(report(replace(material, bend=fit.bend),
+                        Drape(fit.coefficient, fit.spacing, fit.error)))
     lines.append(f"# fitted to a drape coefficient of {100 * fit.target:g} %: bending length "
                  f"{100 * fit.bending_length:.3g} cm, simulated {100 * fit.coefficient:.1f} % "
                  f"({len(fit.runs)} simulations)")

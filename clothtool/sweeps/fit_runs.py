@@ -82,8 +82,6 @@ class FitRuns:
         """Make sure the points ``us`` (and, ``with_steps``, their finite-difference points)
         have been simulated: one round of those not on disk."""
         points = [q for u in us for q in self.points_of(u, with_steps)]
-        if self.start is None:
-            self.start = points[0]
         wanted = [tuple(self.problem.values(q)) for q in points]
         missing, pending = [], {}
         for values in wanted:

@@ -34,6 +34,7 @@ so) is weak in the same sense and shares itself among them.
 """
 
 import copy
+import itertools
 import json
 import math
 import time
@@ -137,7 +138,7 @@ class FitResult:
 
 
 def fit(config, capture, ranges, output_dir, *, settings=None, compare="auto", outliers=None,
-        register=True, jobs=1, slurm=False, max_simulations=MAX_SIMULATIONS,
+        register=True, scan=0, jobs=1, slurm=False, max_simulations=MAX_SIMULATIONS,
         compare_strain=False, on_done=None, log=None):
     """Fit the ``ranges`` keys of the simulation ``config`` (a YAML path) to the captured
     frames ``capture`` (a folder, glob or list of PLY/OBJ files: frame 0 the initial state,
@@ -149,7 +150,9 @@ def fit(config, capture, ranges, output_dir, *, settings=None, compare="auto", o
     outside). ``settings``: ``["key=value"]`` applied to the config first. ``compare``:
     'vertex', 'surface' or 'auto' (:mod:`clothtool.sweeps.capture`). ``register``: move the
     capture rigidly so that its frame 0 lies nearest the config's initial state
-    (:func:`~clothtool.sweeps.capture.register`). ``outliers``: a
+    (:func:`~clothtool.sweeps.capture.register`). ``scan``: first simulate ``scan`` values of
+    each key across its range (the centres of a grid of scanⁿ cells, one round) and start from
+    the one nearest the capture: for keys with local minima (friction). ``outliers``: a
     distance (m) beyond which a residual counts less and less (Cauchy's loss ln(1 + z),
     z = (r/outliers)²), for captures with stray points; None: plain least squares. ``jobs``,
     ``slurm``: how each round runs (as :func:`~clothtool.sweeps.api.sweep`);
@@ -177,7 +180,7 @@ def fit(config, capture, ranges, output_dir, *, settings=None, compare="auto", o
         pool = Pool(None, jobs)
     try:
         problem = _Problem(config, capture, ranges, settings, compare, outliers, max_simulations,
-                           register)
+                           register, scan)
         root = Path(output_dir)
         problem.claim(root)
         result = FitResult(root, problem.capture.mode, problem.parameters,
@@ -219,6 +222,16 @@ def _solve(problem, evals, result, outliers, max_simulations, log):
             raise StopIteration
 
     try:
+        if problem.scan:  # a grid over the ranges in one round; start from its nearest point
+            axis = (np.arange(problem.scan) + 0.5) / problem.scan
+            grid = [np.array(u) for u in itertools.product(axis, repeat=len(u0))]
+            evals.evaluate(grid)
+            u0 = min(grid, key=lambda u: np.nan_to_num(evals.rms(u), nan=np.inf))
+            for p, value in zip(problem.parameters, problem.values(u0)):
+                p.start = value
+            log(f"  scan: {len(grid)} simulations; the nearest to the capture: "
+                f"{problem.shown(u0)}, RMS {1000 * evals.rms(u0):.3g} mm")
+        evals.start = u0
         evals.evaluate([u0], with_steps=True)  # the start and its Jacobian: one round
         solution = least_squares(evals.residual, u0, jac=evals.jacobian, bounds=(0.0, 1.0),
                                  method="trf", x_scale="jac", ftol=FTOL, xtol=XTOL, gtol=1e-10,
@@ -294,7 +307,7 @@ class _Problem:
     """The checked inputs: base config, settings, parameters, capture."""
 
     def __init__(self, config, capture, ranges, settings, compare, outliers, max_simulations,
-                 register):
+                 register, scan):
         from clothtool.config_tools import apply_overrides
         from clothtool.sim.model.config import load_config, read_yaml
         from clothtool.sim.model.mesh import build_rest_mesh
@@ -349,6 +362,13 @@ class _Problem:
         self.target = [str(Path(p).resolve()) for p in self.capture.paths]
         self.compare, self.outliers, self.max_simulations = compare, outliers, max_simulations
         self.register = register
+        if isinstance(scan, bool) or not isinstance(scan, int) or scan < 0:
+            raise InputError("must be a whole number ≥ 0", keyword="scan", value=scan)
+        if scan ** len(self.parameters) > max_simulations:
+            raise InputError(f"{scan}^{len(self.parameters)} = {scan ** len(self.parameters)} "
+                             f"simulations, more than the budget of {max_simulations}",
+                             keyword="scan", value=scan)
+        self.scan = scan
         self.offset0, self.left0, self.shift, self.angle = register_capture(
             self.capture, mesh.positions, mesh.faces, move=register)
         # the sweeps' --set: the user's, then a number turned into its [warp, weft] pair
@@ -372,7 +392,7 @@ class _Problem:
                 f"from {len(c.frames) - 1} frames of {c.frames.shape[1]} captured vertices, "
                 f"compared {how}")
         line += f"; frame 0 is {1000 * self.offset0:.3g} mm RMS from the config's initial state"
-        if self.register:
+        if self.register and self.offset0 > 1e-9:
             line += (f", {1000 * self.left0:.3g} mm once moved rigidly onto it (by "
                      f"{1000 * self.shift:.3g} mm and {math.degrees(self.angle):.3g}°)")
         return line
@@ -382,7 +402,7 @@ class _Problem:
                 "target": self.target, "ranges": {p.key: [p.lo, p.hi, "log" if p.log else
                                                          "linear"] for p in self.parameters},
                 "compare": self.capture.mode, "outliers": self.outliers,
-                "register": self.register}
+                "register": self.register, "scan": self.scan}
 
     def claim(self, root):
         """``root`` is free for this fit (absent, empty or holding the same fit), then its
@@ -420,6 +440,8 @@ def _numeric_key(raw, checked, key, shown, base_dir):
             node = node[int(part)]
         elif hasattr(node, "__dataclass_fields__") and part in node.__dataclass_fields__:
             node = getattr(node, part)
+        elif hasattr(node, "__dataclass_fields__") and part == getattr(node, "kind", None):
+            continue  # a tagged entry's tag: scene.colliders.0.sphere.friction
         elif (depth == len(parts) - 1 and part in ("0", "1") and isinstance(node, (int, float))
               and not isinstance(node, bool)):
             from clothtool.config_tools import assign

@@ -43,7 +43,7 @@ from clothtool.geometry import dihedral_angles
 from clothtool.sim.energies.bending import dihedral_assemble, dihedral_total_energy
 from clothtool.sim.energies.membrane import (add_triangle, deformation, deformation_gradient,
                                              membrane_density, membrane_total_energy,
-                                             to_vertices)
+                                             shear_outer, to_vertices)
 from clothtool.sim.energies.plate import quadratic_form
 from clothtool.vec3 import add, dot, load, scale
 
@@ -95,15 +95,7 @@ def dissipation_density(f0, f1, coef, base, exact, g0, g1, h_f):
     energy += 0.5 * k * gap * gap
     g0 = add(g0, scale(k * gap, f1))
     g1 = add(g1, scale(k * gap, f0))
-    for p in range(3):
-        for q in range(3):
-            h_f[p, q] += k * f1[p] * f1[q]
-            h_f[p, 3 + q] += k * f1[p] * f0[q]
-            h_f[3 + p, q] += k * f0[p] * f1[q]
-            h_f[3 + p, 3 + q] += k * f0[p] * f0[q]
-        if exact:
-            h_f[p, 3 + p] += k * gap
-            h_f[3 + p, p] += k * gap
+    shear_outer(f0, f1, k, k * gap, exact, h_f)
     return energy, g0, g1
 
 

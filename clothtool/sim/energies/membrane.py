@@ -130,19 +130,27 @@ def _shear_eigen(f0, f1):
     return s, us, ws, lam, add(scale(c1, us), scale(c2, ws)), sub(scale(c1, us), scale(c2, ws))
 
 
+@njit(cache=True, inline="always")
+def shear_outer(f0, f1, k, cross, exact, out):
+    """Add k ggᵀ, g = (f1, f0) = ∂s/∂vec F of the shear s = f0·f1, to the 6×6 out, and with
+    ``exact`` ``cross`` times H₆ = ∂²s/∂vec F² = [[0, I], [I, 0]] (k s H₆: the shear's exact
+    Hessian)."""
+    for p in range(3):
+        for q in range(3):
+            out[p, q] += k * f1[p] * f1[q]
+            out[p, 3 + q] += k * f1[p] * f0[q]
+            out[3 + p, q] += k * f0[p] * f1[q]
+            out[3 + p, 3 + q] += k * f0[p] * f0[q]
+        if exact:
+            out[p, 3 + p] += cross
+            out[3 + p, p] += cross
+
+
 @njit(cache=True)
 def _shear_hessian(f0, f1, k, project, out):
     """Add the 6×6 shear Hessian k[ggᵀ + s H₆] (or its PSD projection) to out."""
     if not project:
-        s = dot(f0, f1)
-        for p in range(3):
-            for q in range(3):
-                out[p, q] += k * f1[p] * f1[q]
-                out[p, 3 + q] += k * f1[p] * f0[q]
-                out[3 + p, q] += k * f0[p] * f1[q]
-                out[3 + p, 3 + q] += k * f0[p] * f0[q]
-            out[p, 3 + p] += k * s
-            out[3 + p, p] += k * s
+        shear_outer(f0, f1, k, k * dot(f0, f1), True, out)
         return
     s, us, ws, lam, top, bottom = _shear_eigen(f0, f1)
     # s (P⁺ − ŝŝᵀ) when s > 0, −s (P⁻ − d̂d̂ᵀ) when s < 0; P± = ½[[I, ±I], [±I, I]]

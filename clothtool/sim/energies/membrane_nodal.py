@@ -46,33 +46,48 @@ from clothtool.vec3 import dot, load
 EPS = 1e-12
 
 
-def nodal_operator(faces, dr_inv, area, n_vertices, stretch, shear):
-    """The smoothing cells: each vertex's stencil (ptr, index: its ring, sorted), its
-    triangles (tri_ptr, tri: CSR over vertices), their weights w_vt and their corners'
-    places in the stencil (local (K, 3)), the cell areas A_v (n,), and per-vertex materials
-    (``stretch`` (n, 4), ``shear`` (n,)) averaged over the ring by area."""
+def nodal_operator(faces, dr_inv, area, n_vertices, stretch, shear, cells=None):
+    """The smoothing cells: each cell's stencil (ptr, index: the vertices of its triangles,
+    sorted), its triangles (tri_ptr, tri: CSR over cells), their weights w_vt and their
+    corners' places in the stencil (local (K, 3)), the cell areas A_v, and per-cell materials
+    (``stretch`` (·, 4), ``shear`` (·,)) averaged over the cell by area.
+
+    ``cells`` (M, 3): the cell of each triangle corner (default: its vertex). Corners share a
+    cell only where their triangles' material frames agree: a garment's seam vertex has a
+    cell in each panel (:func:`frame_cells`)."""
+    cells = faces if cells is None else np.asarray(cells, np.int64)
+    n_cells = int(cells.max()) + 1 if cells.size else 0
     third = area / 3.0
-    cell = np.bincount(faces.ravel(), np.repeat(third, 3), minlength=n_vertices)
-    owner = np.repeat(faces, 3, axis=1).ravel()  # (M·9,): the cell v of each (v, j) corner pair
+    corner_cell = cells.ravel()  # (M·3,): the cell each triangle corner lies in
+    cell = np.bincount(corner_cell, np.repeat(third, 3), minlength=n_cells)
+    owner = np.repeat(cells, 3, axis=1).ravel()  # (M·9,): the cell of each (corner, j) pair
     corner = np.tile(faces, (1, 3)).ravel()
     key = np.unique(owner * n_vertices + corner)
     index = (key % n_vertices).astype(np.int64)
     ptr = np.concatenate([[0], np.cumsum(np.bincount(key // n_vertices,
-                                                     minlength=n_vertices))]).astype(np.int64)
-    vertex = faces.ravel()  # (M·3,): the cell each triangle corner lies in
-    order = np.argsort(vertex, kind="stable")
+                                                     minlength=n_cells))]).astype(np.int64)
+    order = np.argsort(corner_cell, kind="stable")
     tri = (order // 3).astype(np.int64)
-    tri_ptr = np.concatenate([[0], np.cumsum(np.bincount(vertex, minlength=n_vertices))])
+    tri_ptr = np.concatenate([[0], np.cumsum(np.bincount(corner_cell, minlength=n_cells))])
     tri_ptr = tri_ptr.astype(np.int64)
-    owners = vertex[order]
+    owners = corner_cell[order]
     weight = third[tri] / cell[owners]
     local = np.searchsorted(key, owners[:, None] * n_vertices + faces[tri]) - ptr[owners][:, None]
     local = local.astype(np.int64)
     w = np.where(cell > 0.0, cell, 1.0)
-    mat_stretch = np.stack([np.bincount(vertex, np.repeat(third * stretch[:, c], 3),
-                                        minlength=n_vertices) / w for c in range(4)], axis=1)
-    mat_shear = np.bincount(vertex, np.repeat(third * shear, 3), minlength=n_vertices) / w
+    mat_stretch = np.stack([np.bincount(corner_cell, np.repeat(third * stretch[:, c], 3),
+                                        minlength=n_cells) / w for c in range(4)], axis=1)
+    mat_shear = np.bincount(corner_cell, np.repeat(third * shear, 3), minlength=n_cells) / w
     return ptr, index, tri_ptr, tri, weight, local, cell, mat_stretch, mat_shear
+
+
+def frame_cells(faces, corner_uv):
+    """(M, 3) cells of the corners of a pattern given per corner (garment panels): the
+    corners of one vertex with the same rest coordinates (the same panel) share a cell."""
+    key = np.concatenate([faces.reshape(-1, 1).astype(np.float64),
+                          corner_uv.reshape(-1, 2)], axis=1)
+    _, cells = np.unique(key, axis=0, return_inverse=True)
+    return cells.reshape(faces.shape).astype(np.int64)
 
 
 def nodal_pairs(ptr, index):
@@ -123,10 +138,13 @@ def nodal_assemble(x, faces, dr_inv, ptr, index, tri_ptr, tri, weight, local, ce
                    shear, project, slots, grad, values):
     """W(x); adds ∇W to grad (N, 3) and the Hessian blocks (PSD with ``project``, module
     docstring) to values, stencil v's block (j, k) at ``slots[s_v + j·m_v + k]``
-    (s_v = Σ_{u<v} m_u², m_v its stencil's size; :func:`nodal_pairs`' order)."""
+    (s_v = Σ_{u<v} m_u², m_v its stencil's size; :func:`nodal_pairs`' order). Each pair of
+    the stencil once (the block and its transpose), the shear's row only when the cell has
+    a shear stiffness (the default model keeps its shear on the triangles)."""
     total = 0.0
     start = 0
-    jac = np.zeros((64, 3, 3))  # J_c at each stencil vertex: (local, c, p)
+    jac = np.zeros((64, 3, 3))
+    scaled = np.zeros((64, 3, 3))
     for v in range(len(cell)):
         lo, hi = ptr[v], ptr[v + 1]
         m = hi - lo
@@ -135,6 +153,9 @@ def nodal_assemble(x, faces, dr_inv, ptr, index, tri_ptr, tri, weight, local, ce
             continue
         if m > jac.shape[0]:
             jac = np.zeros((2 * m, 3, 3))
+            scaled = np.zeros((2 * m, 3, 3))
+        kh = shear[v]
+        ncomp = 3 if kh != 0.0 else 2
         jac[:m] = 0.0
         c00 = c11 = c01 = 0.0
         for e in range(tri_ptr[v], tri_ptr[v + 1]):
@@ -147,30 +168,49 @@ def nodal_assemble(x, faces, dr_inv, ptr, index, tri_ptr, tri, weight, local, ce
             c01 += w * (dot(f0, f1))
             for a in range(3):
                 r = local[e, a]
+                wa, wb = 2.0 * w * al[a], 2.0 * w * be[a]
                 for p in range(3):
-                    jac[r, 0, p] += 2.0 * w * al[a] * f0[p]
-                    jac[r, 1, p] += 2.0 * w * be[a] * f1[p]
-                    jac[r, 2, p] += w * (al[a] * f1[p] + be[a] * f0[p])
-        st, kh, av = stretch[v], shear[v], cell[v]
-        total += av * _density(c00, c11, c01, st, kh)
-        n0 = max(np.sqrt(max(c00, 0.0)), EPS)
-        n1 = max(np.sqrt(max(c11, 0.0)), EPS)
-        psi = (0.5 * st[0] * (n0 - st[2]) / n0, 0.5 * st[1] * (n1 - st[3]) / n1, kh * c01)
-        curv = (0.25 * st[0] * st[2] / (n0 * n0 * n0), 0.25 * st[1] * st[3] / (n1 * n1 * n1), kh)
+                    jac[r, 0, p] += wa * f0[p]
+                    jac[r, 1, p] += wb * f1[p]
+                if ncomp == 3:
+                    for p in range(3):
+                        jac[r, 2, p] += w * (al[a] * f1[p] + be[a] * f0[p])
+        st, av = stretch[v], cell[v]
+        n0s = np.sqrt(max(c00, 0.0))
+        n1s = np.sqrt(max(c11, 0.0))
+        total += av * (0.5 * st[0] * (n0s - st[2]) ** 2 + 0.5 * st[1] * (n1s - st[3]) ** 2
+                       + 0.5 * kh * c01 * c01)
+        n0 = max(n0s, EPS)
+        n1 = max(n1s, EPS)
+        psi0 = 0.5 * st[0] * (n0 - st[2]) / n0
+        psi1 = 0.5 * st[1] * (n1 - st[3]) / n1
+        psi2 = kh * c01
+        cv0 = av * 0.25 * st[0] * st[2] / (n0 * n0 * n0)
+        cv1 = av * 0.25 * st[1] * st[3] / (n1 * n1 * n1)
+        cv2 = av * kh
         for r in range(m):
             j = index[lo + r]
             for p in range(3):
-                grad[j, p] += av * (psi[0] * jac[r, 0, p] + psi[1] * jac[r, 1, p]
-                                    + psi[2] * jac[r, 2, p])
-            for c in range(m):
-                block = values[slots[start + r * m + c]]
-                for cc in range(3):
-                    s = av * curv[cc]
-                    for p in range(3):
-                        for q in range(3):
-                            block[p, q] += s * jac[r, cc, p] * jac[c, cc, q]
-        # the geometric part Σ_t w (α, β) M (α, β)ᵀ ⊗ I₃, M clamped to PSD with ``project``
-        m00, m11, m01 = 2.0 * psi[0], 2.0 * psi[1], psi[2]
+                grad[j, p] += av * (psi0 * jac[r, 0, p] + psi1 * jac[r, 1, p]
+                                    + psi2 * jac[r, 2, p])
+                scaled[r, 0, p] = cv0 * jac[r, 0, p]
+                scaled[r, 1, p] = cv1 * jac[r, 1, p]
+                scaled[r, 2, p] = cv2 * jac[r, 2, p]
+        for r in range(m):
+            row = start + r * m
+            for c in range(r, m):
+                k1 = slots[row + c]
+                k2 = slots[start + c * m + r]
+                for p in range(3):
+                    a0, a1, a2 = scaled[r, 0, p], scaled[r, 1, p], scaled[r, 2, p]
+                    for q in range(3):
+                        b = a0 * jac[c, 0, q] + a1 * jac[c, 1, q]
+                        if ncomp == 3:
+                            b += a2 * jac[c, 2, q]
+                        values[k1, p, q] += b
+                        if c != r:
+                            values[k2, q, p] += b
+        m00, m11, m01 = 2.0 * psi0, 2.0 * psi1, psi2
         if project:
             half = 0.5 * (m00 - m11)
             root = np.sqrt(half * half + m01 * m01)
@@ -184,15 +224,17 @@ def nodal_assemble(x, faces, dr_inv, ptr, index, tri_ptr, tri, weight, local, ce
                 ux, uy = ux / norm, uy / norm
             else:
                 ux, uy = 1.0, 0.0
-            l1, l2 = max(l1, 0.0), max(l2, 0.0)  # M = l1 u uᵀ + l2 u⊥ u⊥ᵀ
+            l1, l2 = max(l1, 0.0), max(l2, 0.0)
             m00 = l1 * ux * ux + l2 * uy * uy
             m11 = l1 * uy * uy + l2 * ux * ux
             m01 = (l1 - l2) * ux * uy
         for e in range(tri_ptr[v], tri_ptr[v + 1]):
             t = tri[e]
             d = dr_inv[t]
-            al = (-d[0, 0] - d[1, 0], d[0, 0], d[1, 0])
-            be = (-d[0, 1] - d[1, 1], d[0, 1], d[1, 1])
+            al0, al1, al2 = -d[0, 0] - d[1, 0], d[0, 0], d[1, 0]
+            be0, be1, be2 = -d[0, 1] - d[1, 1], d[0, 1], d[1, 1]
+            al = (al0, al1, al2)
+            be = (be0, be1, be2)
             s = av * weight[e]
             for a in range(3):
                 ra = local[e, a]
@@ -200,8 +242,10 @@ def nodal_assemble(x, faces, dr_inv, ptr, index, tri_ptr, tri, weight, local, ce
                     rb = local[e, b]
                     g = s * (m00 * al[a] * al[b] + m11 * be[a] * be[b]
                              + m01 * (al[a] * be[b] + be[a] * al[b]))
-                    block = values[slots[start + ra * m + rb]]
-                    for p in range(3):
-                        block[p, p] += g
+                    k = slots[start + ra * m + rb]
+                    values[k, 0, 0] += g
+                    values[k, 1, 1] += g
+                    values[k, 2, 2] += g
         start += m * m
     return total
+

@@ -67,12 +67,13 @@ class Membrane(Term):
 
 
 class NodalMembrane(Term):
-    """Σ_v A_v Ψ(C_v), C_v the metric FᵀF averaged over vertex v's third of its triangles;
-    its stencils couple a vertex with its two-ring."""
+    """Σ_v A_v Ψ(C_v), C_v the metric FᵀF averaged over vertex v's third of its triangles
+    (``cells``: a cell per vertex and panel, :func:`~clothtool.sim.energies.membrane_nodal.
+    nodal_operator`); its stencils couple a vertex with its two-ring."""
 
-    def __init__(self, faces, dr_inv, area, n, stretch, shear):
+    def __init__(self, faces, dr_inv, area, n, stretch, shear, cells=None):
         self.faces, self.dr_inv = faces, dr_inv
-        self.operator = nodal_operator(faces, dr_inv, area, n, stretch, shear)
+        self.operator = nodal_operator(faces, dr_inv, area, n, stretch, shear, cells)
         self.elements = nodal_pairs(*self.operator[:2])
 
     def bind(self, pattern):

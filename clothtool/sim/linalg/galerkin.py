@@ -12,8 +12,7 @@ the left product P_iᵀ(…) is taken once per coarse slot of the row, not once 
 
 The prolongators' blocks start with the identity (a node's translations are its aggregate's,
 :mod:`~clothtool.sim.linalg.modes`): the fine P_i = [I₃ | C_i] (C_i 3×5) and the coarse
-T_a = [[I₃, X_a], [0, Y_a]] (X_a 3×5, Y_a 5×5). The products skip what the identity and the zero
-block make trivial.
+T_a = [[I₃, X_a], [0, Y_a]] (X_a 3×5, Y_a 5×5). The products skip what the identity makes trivial.
 """
 
 import numpy as np
@@ -39,88 +38,46 @@ def _slot(slots, used, target, acc):
     return k, used
 
 
+@njit(cache=True, inline="always")
+def _add_product(a, p, out):
+    """out += a p for a block p (b × M) that starts with the identity, p[:, :3] = [I₃; 0]."""
+    for r in range(a.shape[0]):
+        for c in range(3):
+            out[r, c] += a[r, c]
+        for c in range(3, M):
+            v = 0.0
+            for q in range(a.shape[1]):
+                v += a[r, q] * p[q, c]
+            out[r, c] += v
+
+
 @njit(cache=True)
-def galerkin_fine(row_ptr, col, values, skip, slot_map, p, out):
-    """out = Pᵀ A P for the fine level: ``values`` (nnzb, 3, 3), ``p`` (n, 3, M) with p[i] =
-    [I₃ | C_i]; rows and columns of nodes with ``skip`` set (pinned vertices) are left out."""
+def galerkin(row_ptr, col, values, skip, slot_map, p, out):
+    """out = Pᵀ A P: ``values`` (nnzb, b, b) the level's blocks, ``p`` (n, b, M) its
+    prolongator's, each starting with the identity (p[i][:, :3] = [I₃; 0]: the fine
+    P_i = [I₃ | C_i], b = 3, and the coarse T_a = [[I₃, X_a], [0, Y_a]], b = M); rows and
+    columns of nodes with ``skip`` set (pinned vertices, nodes without a free vertex) are left
+    out."""
     out[:, :, :] = 0.0
-    acc = np.zeros((SLOTS_PER_ROW, 3, M))
+    acc = np.zeros((SLOTS_PER_ROW, values.shape[1], M))
     slots = np.empty(SLOTS_PER_ROW, np.int64)
     for i in range(row_ptr.shape[0] - 1):
         if skip[i]:
             continue
         used = 0
-        for s in range(row_ptr[i], row_ptr[i + 1]):
+        for s in range(row_ptr[i], row_ptr[i + 1]):  # acc[slot] += A_ij P_j
             j = col[s]
             if skip[j]:
                 continue
             k, used = _slot(slots, used, slot_map[s], acc)
-            a = values[s]
-            w = acc[k]
-            pj = p[j]
-            for r in range(3):
-                a0, a1, a2 = a[r, 0], a[r, 1], a[r, 2]
-                w[r, 0] += a0
-                w[r, 1] += a1
-                w[r, 2] += a2
-                for c in range(3, M):
-                    w[r, c] += a0 * pj[0, c] + a1 * pj[1, c] + a2 * pj[2, c]
-        pi = p[i]
-        for k in range(used):
-            o = out[slots[k]]
-            w = acc[k]
-            for c in range(M):
-                w0, w1, w2 = w[0, c], w[1, c], w[2, c]
-                o[0, c] += w0
-                o[1, c] += w1
-                o[2, c] += w2
-                for r in range(3, M):
-                    o[r, c] += pi[0, r] * w0 + pi[1, r] * w1 + pi[2, r] * w2
-
-
-@njit(cache=True)
-def galerkin_coarse(row_ptr, col, values, skip, slot_map, t, out):
-    """out = Tᵀ A T for a coarse level: ``values`` (nnzb, M, M), ``t`` (n, M, M) with t[a] =
-    [[I₃, X_a], [0, Y_a]]; nodes with ``skip`` set (no free vertex) are left out."""
-    out[:, :, :] = 0.0
-    acc = np.zeros((SLOTS_PER_ROW, M, M))
-    slots = np.empty(SLOTS_PER_ROW, np.int64)
-    for i in range(row_ptr.shape[0] - 1):
-        if skip[i]:
-            continue
-        used = 0
-        for s in range(row_ptr[i], row_ptr[i + 1]):
-            j = col[s]
-            if skip[j]:
-                continue
-            k, used = _slot(slots, used, slot_map[s], acc)
-            a = values[s]
-            w = acc[k]
-            tj = t[j]
-            for r in range(M):
-                for c in range(3):
-                    w[r, c] += a[r, c]
-                for c in range(3, M):
-                    v = 0.0
-                    for q in range(M):
-                        v += a[r, q] * tj[q, c]
-                    w[r, c] += v
-        ti = t[i]
-        for k in range(used):
-            o = out[slots[k]]
-            w = acc[k]
-            for c in range(M):
-                for r in range(3):
-                    o[r, c] += w[r, c]
-                for r in range(3, M):
-                    v = 0.0
-                    for q in range(M):
-                        v += ti[q, r] * w[q, c]
-                    o[r, c] += v
+            _add_product(values[s], p[j], acc[k])
+        for k in range(used):  # out[slot] += P_iᵀ acc[slot], as its transpose
+            _add_product(acc[k].T, p[i], out[slots[k]].T)
 
 
 def pinned_mask(kind, constrained):
-    """The ``skip`` of :func:`galerkin_fine` under the constraint filter: the pinned vertices."""
+    """The ``skip`` of :func:`galerkin` on the fine level under the constraint filter: the
+    pinned vertices."""
     if constrained:
         return kind == PINNED
     return np.zeros(len(kind), dtype=np.bool_)

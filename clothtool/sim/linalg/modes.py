@@ -109,32 +109,43 @@ def _shear(frame, s, out):
                 out[p, q] = frame[0, p] * frame[0, q] - frame[1, p] * frame[1, q]
 
 
+@njit(cache=True, inline="always")
+def _rotations(d0, d1, d2, out):
+    """out[:3, 3 + k] = e_k × d: the rotations' columns of a translation row block."""
+    out[1, 3], out[2, 3] = -d2, d1
+    out[0, 4], out[2, 4] = d2, -d0
+    out[0, 5], out[1, 5] = -d1, d0
+
+
+@njit(cache=True, inline="always")
+def _translation_rows(point, centroid, rho, frame, shear, out):
+    """out[:3] = [I₃ | e_k × d | L_s d], d = (point − centroid)/ρ: the rows of a node's
+    translations in the modes of its aggregate (centroid, radius ρ, PCA ``frame``); only I₃
+    for an aggregate of one point (ρ = 0). ``shear`` (2, 3, 3) receives L_s."""
+    for p in range(3):
+        out[p, p] = 1.0
+    if rho == 0.0:
+        return
+    d0 = (point[0] - centroid[0]) / rho
+    d1 = (point[1] - centroid[1]) / rho
+    d2 = (point[2] - centroid[2]) / rho
+    _rotations(d0, d1, d2, out)
+    _shear(frame, 0, shear[0])
+    _shear(frame, 1, shear[1])
+    for s in range(2):
+        for p in range(3):
+            out[p, 6 + s] = shear[s, p, 0] * d0 + shear[s, p, 1] * d1 + shear[s, p, 2] * d2
+
+
 @njit(cache=True)
 def fine_prolongator(x, free, agg, centroid, radius, frame, q):
     """q[i] (3×8) = the modes of vertex i's aggregate at x_i (zero for a pinned vertex)."""
     shear = np.empty((2, 3, 3))
     for i in range(x.shape[0]):
         q[i] = 0.0
-        if not free[i]:
-            continue
-        a = agg[i]
-        for p in range(3):
-            q[i, p, p] = 1.0
-        rho = radius[a]
-        if rho == 0.0:
-            continue
-        d0 = (x[i, 0] - centroid[a, 0]) / rho
-        d1 = (x[i, 1] - centroid[a, 1]) / rho
-        d2 = (x[i, 2] - centroid[a, 2]) / rho
-        # e_k × d
-        q[i, 1, 3], q[i, 2, 3] = -d2, d1
-        q[i, 0, 4], q[i, 2, 4] = d2, -d0
-        q[i, 0, 5], q[i, 1, 5] = -d1, d0
-        _shear(frame[a], 0, shear[0])
-        _shear(frame[a], 1, shear[1])
-        for s in range(2):
-            for p in range(3):
-                q[i, p, 6 + s] = shear[s, p, 0] * d0 + shear[s, p, 1] * d1 + shear[s, p, 2] * d2
+        if free[i]:
+            a = agg[i]
+            _translation_rows(x[i], centroid[a], radius[a], frame[a], shear, q[i])
 
 
 @njit(cache=True)
@@ -147,31 +158,19 @@ def coarse_prolongator(count, centroid, radius, frame, agg, c_centroid, c_radius
         if count[a] == 0.0:
             continue
         b = agg[a]
-        for p in range(3):
-            t[a, p, p] = 1.0
+        # A's modes at a's centroid: its translations, the translations e_k × (c_a − c_A)/ρ_A
+        # of its rotations and L_s (c_a − c_A)/ρ_A of its shears
+        _translation_rows(centroid[a], c_centroid[b], c_radius[b], c_frame[b], lb, t[a])
         rho = c_radius[b]
-        if rho == 0.0:
+        if rho == 0.0 or radius[a] == 0.0:
             continue
-        off0 = centroid[a, 0] - c_centroid[b, 0]
-        off1 = centroid[a, 1] - c_centroid[b, 1]
-        off2 = centroid[a, 2] - c_centroid[b, 2]
+        # a's own rotations and shears, scaled by ρ_a/ρ_A
         ratio = radius[a] / rho
-        # rotation k of A: a's rotation k scaled, plus the translation e_k × (c_a − c_A)/ρ_A
-        t[a, 1, 3], t[a, 2, 3] = -off2 / rho, off1 / rho
-        t[a, 0, 4], t[a, 2, 4] = off2 / rho, -off0 / rho
-        t[a, 0, 5], t[a, 1, 5] = -off1 / rho, off0 / rho
         for k in range(3):
             t[a, 3 + k, 3 + k] = ratio
-        _shear(c_frame[b], 0, lb[0])
-        _shear(c_frame[b], 1, lb[1])
         _shear(frame[a], 0, la[0])
         _shear(frame[a], 1, la[1])
         for s in range(2):
-            for p in range(3):
-                t[a, p, 6 + s] = (lb[s, p, 0] * off0 + lb[s, p, 1] * off1
-                                  + lb[s, p, 2] * off2) / rho
-            if radius[a] == 0.0:
-                continue
             for j in range(2):
                 inner = 0.0
                 for p in range(3):

@@ -26,11 +26,11 @@ from numba import njit
 from clothtool.sim.linalg.filter import FREE, PINNED
 from clothtool.sim.linalg.aggregation import coarsen
 from clothtool.sim.linalg.blocks import BlockPattern
+from clothtool.sim.linalg.relaxation import cholesky, cholesky_solve
 from clothtool.vec3 import copy_into, spd_inverse3
 
 COARSEST = 48  # nodes at which the hierarchy stops (dense Cholesky of ≤ 3·48 unknowns)
 OMEGA = 0.6  # Jacobi smoothing weight (λmax(D⁻¹A) ≤ 2 for these matrices)
-PIVOT = 1e-12  # smallest Cholesky pivot relative to its diagonal entry
 
 
 class Hierarchy:
@@ -82,16 +82,10 @@ class Hierarchy:
         self.z = np.zeros((self.node_off[-1], 3))
         self.t = np.zeros((self.node_off[-1], 3))
         self.inverse = np.zeros((0, 3, 3))  # the V-cycle has its own diagonal inverses
-        # the tuple the numba kernels take (NO_MULTIGRID has the same layout, no levels)
+        # the tuple the numba kernels take
         self.arrays = (self.node_off, self.block_off, self.row_ptr, self.row_off, self.col,
                        self.agg, self.slot_map, self.values, self.diag_inv, self.coarsest, self.r,
                        self.z, self.t)
-
-
-NO_MULTIGRID = (np.zeros(1, np.int64), np.zeros(1, np.int64), np.zeros(1, np.int64),
-                np.zeros(1, np.int64), np.zeros(0, np.int64), np.zeros(0, np.int64),
-                np.zeros(0, np.int64), np.zeros((0, 3, 3)), np.zeros((0, 3, 3)), np.zeros((0, 0)),
-                np.zeros((0, 3)), np.zeros((0, 3)), np.zeros((0, 3)))
 
 
 @njit(cache=True)
@@ -164,50 +158,7 @@ def setup_levels(fine, kind, constrained, floor, mg):
             for p in range(3):
                 for q in range(3):
                     coarsest[3 * i + p, 3 * j + q] = values[b0 + s - base, p, q]
-    _cholesky(coarsest)
-
-
-@njit(cache=True)
-def _cholesky(a):
-    """In-place Cholesky factor (lower triangle) of a symmetric positive definite matrix.
-
-    A pivot that rounding has made non-positive (entries spanning 30 orders of magnitude,
-    as near-degenerate hinges give) is replaced by the matrix's own diagonal entry: the
-    factor is then that of A + E with E ≥ 0 diagonal, still a valid SPD preconditioner."""
-    n = a.shape[0]
-    for j in range(n):
-        diagonal = a[j, j]
-        d = diagonal
-        for k in range(j):
-            d -= a[j, k] * a[j, k]
-        if not d > PIVOT * diagonal:
-            d = diagonal if diagonal > 0.0 else 1.0
-        d = np.sqrt(d)
-        a[j, j] = d
-        for i in range(j + 1, n):
-            s = a[i, j]
-            for k in range(j):
-                s -= a[i, k] * a[j, k]
-            a[i, j] = s / d
-
-
-@njit(cache=True)
-def _cholesky_solve(lower, r, z, lo, hi):
-    """z[lo:hi] = A⁻¹ r[lo:hi] with A = L Lᵀ, for (n, 3) slices flattened row-major."""
-    n = 3 * (hi - lo)
-    y = np.empty(n)
-    for i in range(n):
-        s = r[lo + i // 3, i % 3]
-        for k in range(i):
-            s -= lower[i, k] * y[k]
-        y[i] = s / lower[i, i]
-    for i in range(n - 1, -1, -1):
-        s = y[i]
-        for k in range(i + 1, n):
-            s -= lower[k, i] * y[k]
-        y[i] = s / lower[i, i]
-    for i in range(n):
-        z[lo + i // 3, i % 3] = y[i]
+    cholesky(coarsest)
 
 
 @njit(cache=True)
@@ -265,7 +216,8 @@ def vcycle(rhs, out, mg):
             for p in range(3):
                 t[i, p] = r[i, p] - t[i, p]
         _restrict(lo, hi, hi, agg, t, r)
-    _cholesky_solve(coarsest, r, z, node_off[levels - 1], node_off[levels])
+    lo, hi = node_off[levels - 1], node_off[levels]
+    cholesky_solve(coarsest, r[lo:hi], z[lo:hi])
     for lev in range(levels - 2, 0, -1):  # up: prolong the correction, post-smooth
         lo, hi = node_off[lev], node_off[lev + 1]
         for i in range(lo, hi):

@@ -30,31 +30,18 @@ from numba import njit
 from clothtool.sim.linalg.aggregation import coarsen
 from clothtool.sim.linalg.blocks import BlockPattern
 from clothtool.sim.linalg.filter import PINNED
-from clothtool.sim.linalg.galerkin import galerkin_coarse, galerkin_fine, pinned_mask
+from clothtool.sim.linalg.galerkin import galerkin, pinned_mask
 from clothtool.sim.linalg.modes import (M, coarse_prolongator, coarser_sums, fine_prolongator,
                                         node_frames, node_sums)
 from clothtool.sim.linalg.relaxation import (block_inverses, block_jacobi, cholesky,
                                              cholesky_solve, forward_from_zero3, gauss_seidel,
-                                             gauss_seidel3)
+                                             gauss_seidel3, residual)
 
 COARSEST = 16  # nodes at which the hierarchy stops (a dense Cholesky of ≤ 8·16 unknowns)
-COARSE_CYCLES = 2  # V-cycles on the coarse levels per cycle (2: a W-cycle on the first)
 # a vertex whose diagonal block exceeds this many times its inertia floor (a contact barrier near
 # its singularity, up to 1e22) is left to the fine level's exact block inverse: in a coarse block
 # it would bury every other entry below rounding
 STIFF = 1e8
-
-
-def _empty(*shape):
-    return np.zeros(shape)
-
-
-# the layout of ModeMultigrid.modes, without levels (the other preconditioners pass it)
-NO_MODES = (_empty(0, 3, M), np.zeros(0, np.int64), _empty(0, 3, 3), np.zeros(1, np.int64),
-            np.zeros(1, np.int64), np.zeros(1, np.int64), np.zeros(0, np.int64),
-            np.zeros(0, np.int64), _empty(0, M, M), _empty(0, M, M), _empty(0, M, M),
-            np.zeros(0, np.int64), _empty(0, 0), _empty(0, M), _empty(0, M), _empty(0, M),
-            _empty(0, 3))
 
 
 class ModeMultigrid:
@@ -65,7 +52,7 @@ class ModeMultigrid:
     of the coarse arrays, blocks block_off[c]:block_off[c+1] and its CSR row pointers at
     row_off[c] (local indices)."""
 
-    inverse = _empty(0, 3, 3)  # what the other preconditioners pass to PCG
+    inverse = np.zeros((0, 3, 3))  # block Jacobi's inverses, unused here
 
     def __init__(self, pattern, faces):
         triangles = BlockPattern(pattern.n, faces)
@@ -102,8 +89,9 @@ class ModeMultigrid:
         self.skip = [np.zeros(s, dtype=np.bool_) for s in sizes]
         self.modes = (self.q, self.agg0, self.dinv0, self.node_off, self.block_off,
                        self.row_off, self.row_ptr, self.col, self.values, self.dinv,
-                       self.transfer, self.cagg, self.coarsest, np.zeros((total, M)),
-                       np.zeros((total, M)), np.zeros((total, M)), np.zeros((pattern.n, 3)))
+                       self.transfer, self.cagg, self.coarsest, np.concatenate(self.cdiag),
+                       np.zeros((total, M)), np.zeros((total, M)), np.zeros((total, M)),
+                       np.zeros((pattern.n, 3)), pattern.diag)
 
     def _level(self, c):
         """Coarse level c's (row_ptr, col, values, nodes slice)."""
@@ -142,12 +130,12 @@ class ModeMultigrid:
                      self.dinv0)
         self.q[:] = self.q0
         self.q[held] = 0.0
-        galerkin_fine(matrix.row_ptr, matrix.col, matrix.values, held, self.slot0, self.q,
-                      self._level(0)[2])
+        galerkin(matrix.row_ptr, matrix.col, matrix.values, held, self.slot0, self.q,
+                 self._level(0)[2])
         for c in range(len(self.sizes)):
             level = self._level(c)
             if c > 0:
-                galerkin_coarse(row_ptr, col, values, skip, slot_map, p, level[2])
+                galerkin(row_ptr, col, values, skip, slot_map, p, level[2])
             if c + 1 < len(self.sizes):
                 block_inverses(level[2], self.cdiag[c], self.skip[c], self.dinv[level[3]])
                 row_ptr, col, values = level[:3]
@@ -182,62 +170,51 @@ def _dense(row_ptr, col, values, out):
 
 
 @njit(cache=True)
-def _residual(row_ptr, col, values, r, x, out):
-    """out = r − A x for a coarse level (blocks of any size)."""
-    b = x.shape[1]
-    for i in range(x.shape[0]):
-        for p in range(b):
-            out[i, p] = r[i, p]
-        for s in range(row_ptr[i], row_ptr[i + 1]):
-            a = values[s]
-            j = col[s]
-            for p in range(b):
-                v = 0.0
-                for q in range(b):
-                    v += a[p, q] * x[j, q]
-                out[i, p] -= v
-
-
-@njit(cache=True)
 def _restrict(p, agg, src, dst):
     """dst[agg[i]] += p[i]ᵀ src[i] (Pᵀ), dst zeroed first."""
     dst[:, :] = 0.0
-    b, m = p.shape[1], p.shape[2]
     for i in range(src.shape[0]):
-        a = agg[i]
-        for c in range(m):
-            v = 0.0
-            for r in range(b):
-                v += p[i, r, c] * src[i, r]
-            dst[a, c] += v
+        _transfer(p[i], src[i], dst[agg[i]], True)
 
 
 @njit(cache=True)
 def _prolong(p, agg, src, dst):
     """dst[i] += p[i] src[agg[i]] (P)."""
-    b, m = p.shape[1], p.shape[2]
     for i in range(dst.shape[0]):
-        a = agg[i]
-        for r in range(b):
+        _transfer(p[i], src[agg[i]], dst[i], False)
+
+
+@njit(cache=True, inline="always")
+def _transfer(block, src, dst, transpose):
+    """dst += block src, or blockᵀ src with ``transpose`` (one node's share of P or Pᵀ)."""
+    rows, cols = block.shape
+    if transpose:
+        for c in range(cols):
             v = 0.0
-            for c in range(m):
-                v += p[i, r, c] * src[a, c]
-            dst[i, r] += v
+            for r in range(rows):
+                v += block[r, c] * src[r]
+            dst[c] += v
+    else:
+        for r in range(rows):
+            v = 0.0
+            for c in range(cols):
+                v += block[r, c] * src[c]
+            dst[r] += v
 
 
 @njit(cache=True)
 def _coarse_vcycle(mg, r, z, t):
     """z = a V-cycle on the coarse levels for right-hand side r on the first of them."""
     (_, _, _, node_off, block_off, row_off, c_row_ptr, c_col, c_values, c_dinv,
-     transfer, c_agg, coarsest) = mg[:13]
+     transfer, c_agg, coarsest, c_diag) = mg[:14]
     levels = node_off.shape[0] - 1
     for c in range(levels - 1):  # down: pre-smooth, restrict the residual
         lo, hi = node_off[c], node_off[c + 1]
         rp = c_row_ptr[row_off[c]:row_off[c] + hi - lo + 1]
         cl, vals = c_col[block_off[c]:block_off[c + 1]], c_values[block_off[c]:block_off[c + 1]]
         z[lo:hi] = 0.0
-        gauss_seidel(rp, cl, vals, c_dinv[lo:hi], r[lo:hi], z[lo:hi], True)
-        _residual(rp, cl, vals, r[lo:hi], z[lo:hi], t[lo:hi])
+        gauss_seidel(rp, cl, c_diag[lo:hi], vals, c_dinv[lo:hi], r[lo:hi], z[lo:hi], True)
+        residual(rp, cl, vals, r[lo:hi], z[lo:hi], t[lo:hi])
         _restrict(transfer[lo:hi], c_agg[lo:hi], t[lo:hi], r[hi:node_off[c + 2]])
     last = levels - 1
     cholesky_solve(coarsest, r[node_off[last]:node_off[last + 1]],
@@ -247,29 +224,19 @@ def _coarse_vcycle(mg, r, z, t):
         rp = c_row_ptr[row_off[c]:row_off[c] + hi - lo + 1]
         cl, vals = c_col[block_off[c]:block_off[c + 1]], c_values[block_off[c]:block_off[c + 1]]
         _prolong(transfer[lo:hi], c_agg[lo:hi], z[hi:node_off[c + 2]], z[lo:hi])
-        gauss_seidel(rp, cl, vals, c_dinv[lo:hi], r[lo:hi], z[lo:hi], False)
+        gauss_seidel(rp, cl, c_diag[lo:hi], vals, c_dinv[lo:hi], r[lo:hi], z[lo:hi],
+                     False)
 
 
 @njit(cache=True)
 def mode_cycle(rhs, out, row_ptr, col, values, mg):
-    """out = B rhs: a forward block Gauss–Seidel sweep, the coarse correction, a backward sweep;
-    the first coarse level is solved by ``COARSE_CYCLES`` V-cycles (each a sweep before and
-    after its own coarse correction, the coarsest level by its Cholesky factor)."""
-    q0, agg0, dinv0, node_off, block_off, row_off, c_row_ptr, c_col, c_values = mg[:9]
-    r, z, t, t0 = mg[13:]
-    forward_from_zero3(row_ptr, col, values, dinv0, rhs, out, t0)
+    """out = B rhs: a forward block Gauss–Seidel sweep, the coarse correction (a V-cycle on the
+    coarse levels, the coarsest solved by its Cholesky factor), a backward sweep."""
+    q0, agg0, dinv0, node_off = mg[:4]
+    r, z, t, t0, diag = mg[14:]
+    forward_from_zero3(row_ptr, col, diag, values, dinv0, rhs, out, t0)
     lo, hi = node_off[0], node_off[1]
     _restrict(q0, agg0, t0, r[lo:hi])
     _coarse_vcycle(mg, r, z, t)
-    if COARSE_CYCLES > 1 and node_off.shape[0] > 2:
-        first = r[lo:hi].copy()
-        correction = z[lo:hi].copy()
-        rp = c_row_ptr[row_off[0]:row_off[0] + hi - lo + 1]
-        cl, vals = c_col[block_off[0]:block_off[1]], c_values[block_off[0]:block_off[1]]
-        for _ in range(COARSE_CYCLES - 1):
-            _residual(rp, cl, vals, first, correction, r[lo:hi])
-            _coarse_vcycle(mg, r, z, t)
-            correction += z[lo:hi]
-        z[lo:hi] = correction
     _prolong(q0, agg0, z[lo:hi], out)
-    gauss_seidel3(row_ptr, col, values, dinv0, rhs, out, False)
+    gauss_seidel3(row_ptr, col, diag, values, dinv0, rhs, out, False)

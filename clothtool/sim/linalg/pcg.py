@@ -21,9 +21,9 @@ from numba import njit
 
 from clothtool.sim.linalg.filter import PINNED, apply_filter
 from clothtool.sim.linalg.blocks import block_multiply, residual
-from clothtool.sim.linalg.multigrid import COARSEST, NO_MULTIGRID, Hierarchy, vcycle
+from clothtool.sim.linalg.multigrid import COARSEST, Hierarchy, vcycle
 from clothtool.sim.linalg.multilevel import COARSEST as MODES_COARSEST
-from clothtool.sim.linalg.multilevel import NO_MODES, ModeMultigrid, mode_cycle
+from clothtool.sim.linalg.multilevel import ModeMultigrid, mode_cycle
 from clothtool.sim.linalg.pairs import NO_PAIRS, pairs_offdiagonal_multiply
 from clothtool.sim.linalg.relaxation import block_jacobi
 from clothtool.vec3 import copy_into
@@ -94,11 +94,12 @@ def _xpby(x, beta, y):
 
 @njit(cache=True)
 def _precondition(inv, r, kind, constrained, z, mg, row_ptr, col, values, modes):
-    """z = S P⁻¹ r: block Jacobi, the multigrid V-cycle when mg holds a hierarchy, or the mode
-    multigrid's cycle when ``modes`` holds one."""
-    if len(modes[0]) > 0:
+    """z = S P⁻¹ r: the mode multigrid's cycle when ``modes`` holds one, the multigrid V-cycle
+    when ``mg`` does, else block Jacobi. The preconditioners absent are ``None``: numba prunes
+    their branches, so a run compiles only the cycle it uses."""
+    if modes is not None:
         mode_cycle(r, z, row_ptr, col, values, modes)
-    elif len(mg[0]) > 1:
+    elif mg is not None:
         vcycle(r, z, mg)
     else:
         _apply_inverse(inv, r, z)
@@ -124,12 +125,12 @@ def filtered_pcg(matrix, b, x, constraints, tol, max_iter, preconditioner, extra
 
 def _arrays(preconditioner):
     """What the kernels take of a preconditioner: (block-Jacobi inverses, multigrid arrays,
-    mode-multigrid arrays), the empty layout for the kinds it is not."""
+    mode-multigrid arrays), ``None`` for the kinds it is not."""
     if isinstance(preconditioner, ModeMultigrid):
-        return preconditioner.inverse, NO_MULTIGRID, preconditioner.modes
+        return preconditioner.inverse, None, preconditioner.modes
     if isinstance(preconditioner, Hierarchy):
-        return preconditioner.inverse, preconditioner.arrays, NO_MODES
-    return preconditioner.inverse, NO_MULTIGRID, NO_MODES
+        return preconditioner.inverse, preconditioner.arrays, None
+    return preconditioner.inverse, None, None
 
 
 @njit(cache=True)
@@ -144,10 +145,10 @@ def _residual_with(row_ptr, col, values, extra, b, x, r):
 def filtered_pcg_arrays(row_ptr, col, values, b, x, kind, constrained, tol, max_iter,
                         inv, mg, modes, extra):
     """:func:`filtered_pcg` on plain arrays: ``constrained`` False skips the filter; ``inv``
-    the block-Jacobi inverses (:func:`block_jacobi`) and ``mg`` ``NO_MULTIGRID``, or ``mg``
-    the arrays of a multigrid hierarchy after ``setup_levels``, or ``modes`` those of a mode
-    multigrid after its ``setup`` (``NO_MODES`` for none); ``extra`` the matrix-free
-    contact blocks (``NO_PAIRS`` for none)."""
+    the block-Jacobi inverses (:func:`block_jacobi`), or ``mg`` the arrays of a multigrid
+    hierarchy after ``setup_levels``, or ``modes`` those of a mode multigrid after its
+    ``setup`` (``None`` for the ones not used); ``extra`` the matrix-free contact blocks
+    (``NO_PAIRS`` for none)."""
     n = b.shape[0]
     sb = b.copy()
     if constrained:

@@ -22,31 +22,44 @@ from clothtool.vec3 import spd_inverse3
 PIVOT = 1e-12  # smallest Cholesky pivot relative to its diagonal entry
 
 
-@njit(cache=True)
-def gauss_seidel(row_ptr, col, values, diag_inv, r, x, forward):
-    """One block Gauss–Seidel sweep on A x = r, x (n, M) updated in place (a coarse level);
-    ``diag_inv`` the inverses of the diagonal blocks (zero: the node keeps zero)."""
-    n = x.shape[0]
-    b = M
-    t = np.empty(M)
-    for step in range(n):
-        i = step if forward else n - 1 - step
-        for p in range(b):
-            t[p] = r[i, p]
-        for s in range(row_ptr[i], row_ptr[i + 1]):
-            j = col[s]
-            if j == i:
-                continue
-            a = values[s]
-            for p in range(b):
-                v = 0.0
-                for q in range(b):
-                    v += a[p, q] * x[j, q]
-                t[p] -= v
-        d = diag_inv[i]
+@njit(cache=True, inline="always")
+def subtract_products(lo, hi, col, values, x, t):
+    """t −= Σ A_s x_col[s] over the blocks lo ≤ s < hi of a row (blocks of any size)."""
+    b = t.shape[0]
+    for s in range(lo, hi):
+        a = values[s]
+        j = col[s]
         for p in range(b):
             v = 0.0
             for q in range(b):
+                v += a[p, q] * x[j, q]
+            t[p] -= v
+
+
+@njit(cache=True)
+def residual(row_ptr, col, values, r, x, out):
+    """out = r − A x (blocks of any size)."""
+    for i in range(x.shape[0]):
+        out[i] = r[i]
+        subtract_products(row_ptr[i], row_ptr[i + 1], col, values, x, out[i])
+
+
+@njit(cache=True)
+def gauss_seidel(row_ptr, col, diag, values, diag_inv, r, x, forward):
+    """One block Gauss–Seidel sweep on A x = r, x (n, M) updated in place (a coarse level);
+    ``diag`` the slot of each row's diagonal block, ``diag_inv`` the inverses of those blocks
+    (zero: the node keeps zero)."""
+    n = x.shape[0]
+    t = np.empty(M)
+    for step in range(n):
+        i = step if forward else n - 1 - step
+        t[:] = r[i]
+        subtract_products(row_ptr[i], diag[i], col, values, x, t)
+        subtract_products(diag[i] + 1, row_ptr[i + 1], col, values, x, t)
+        d = diag_inv[i]
+        for p in range(M):
+            v = 0.0
+            for q in range(M):
                 v += d[p, q] * t[q]
             x[i, p] = v
 
@@ -76,15 +89,12 @@ def cholesky(a):
             a[i, j] = s / d
 
 
-@njit(cache=True)
-def cholesky_solve(lower, r, z):
-    """z = A⁻¹ r with A = L Lᵀ (L from :func:`cholesky`), for (n, b) arrays flattened
-    row-major."""
-    b = r.shape[1]
-    n = r.shape[0] * b
-    y = np.empty(n)
+@njit(cache=True, inline="always")
+def _substitute(lower, y):
+    """y = (L Lᵀ)⁻¹ y in place: forward substitution with L, then backward with Lᵀ."""
+    n = y.shape[0]
     for i in range(n):
-        s = r[i // b, i % b]
+        s = y[i]
         for k in range(i):
             s -= lower[i, k] * y[k]
         y[i] = s / lower[i, i]
@@ -93,6 +103,18 @@ def cholesky_solve(lower, r, z):
         for k in range(i + 1, n):
             s -= lower[k, i] * y[k]
         y[i] = s / lower[i, i]
+
+
+@njit(cache=True)
+def cholesky_solve(lower, r, z):
+    """z = A⁻¹ r with A = L Lᵀ (L from :func:`cholesky`), for (n, b) arrays flattened
+    row-major."""
+    b = r.shape[1]
+    n = r.shape[0] * b
+    y = np.empty(n)
+    for i in range(n):
+        y[i] = r[i // b, i % b]
+    _substitute(lower, y)
     for i in range(n):
         z[i // b, i % b] = y[i]
 
@@ -103,6 +125,7 @@ def block_inverses(values, diag, skip, out):
     through :func:`cholesky` (so a block with an unsupported mode is inverted on the rest)."""
     m = out.shape[1]
     work = np.empty((m, m))
+    y = np.empty(m)
     for i in range(out.shape[0]):
         out[i] = 0.0
         if skip[i]:
@@ -110,19 +133,10 @@ def block_inverses(values, diag, skip, out):
         work[:, :] = values[diag[i]]
         cholesky(work)
         for c in range(m):  # column c of the inverse: L⁻ᵀ L⁻¹ e_c
-            y = np.zeros(m)
-            for r in range(m):
-                s = 1.0 if r == c else 0.0
-                for k in range(r):
-                    s -= work[r, k] * y[k]
-                y[r] = s / work[r, r]
-            for r in range(m - 1, -1, -1):
-                s = y[r]
-                for k in range(r + 1, m):
-                    s -= work[k, r] * y[k]
-                y[r] = s / work[r, r]
-            for r in range(m):
-                out[i, r, c] = y[r]
+            y[:] = 0.0
+            y[c] = 1.0
+            _substitute(work, y)
+            out[i, :, c] = y
 
 
 @njit(cache=True)
@@ -137,21 +151,27 @@ def block_jacobi(values, diag, kind, floor, inv):
 
 
 @njit(cache=True)
-def gauss_seidel3(row_ptr, col, values, diag_inv, r, x, forward):
+def _row_product3(row_ptr_lo, row_ptr_hi, col, values, x, t0, t1, t2):
+    """(t0, t1, t2) − Σ A_ij x_j over the blocks lo ≤ s < hi of a row."""
+    for s in range(row_ptr_lo, row_ptr_hi):
+        a = values[s]
+        j = col[s]
+        x0, x1, x2 = x[j, 0], x[j, 1], x[j, 2]
+        t0 -= a[0, 0] * x0 + a[0, 1] * x1 + a[0, 2] * x2
+        t1 -= a[1, 0] * x0 + a[1, 1] * x1 + a[1, 2] * x2
+        t2 -= a[2, 0] * x0 + a[2, 1] * x1 + a[2, 2] * x2
+    return t0, t1, t2
+
+
+@njit(cache=True)
+def gauss_seidel3(row_ptr, col, diag, values, diag_inv, r, x, forward):
     """:func:`gauss_seidel` for 3×3 blocks, unrolled (the fine level)."""
     n = x.shape[0]
     for step in range(n):
         i = step if forward else n - 1 - step
-        t0, t1, t2 = r[i, 0], r[i, 1], r[i, 2]
-        for s in range(row_ptr[i], row_ptr[i + 1]):
-            j = col[s]
-            if j == i:
-                continue
-            a = values[s]
-            x0, x1, x2 = x[j, 0], x[j, 1], x[j, 2]
-            t0 -= a[0, 0] * x0 + a[0, 1] * x1 + a[0, 2] * x2
-            t1 -= a[1, 0] * x0 + a[1, 1] * x1 + a[1, 2] * x2
-            t2 -= a[2, 0] * x0 + a[2, 1] * x1 + a[2, 2] * x2
+        t0, t1, t2 = _row_product3(row_ptr[i], diag[i], col, values, x, r[i, 0], r[i, 1],
+                                   r[i, 2])
+        t0, t1, t2 = _row_product3(diag[i] + 1, row_ptr[i + 1], col, values, x, t0, t1, t2)
         d = diag_inv[i]
         x[i, 0] = d[0, 0] * t0 + d[0, 1] * t1 + d[0, 2] * t2
         x[i, 1] = d[1, 0] * t0 + d[1, 1] * t1 + d[1, 2] * t2
@@ -159,42 +179,25 @@ def gauss_seidel3(row_ptr, col, values, diag_inv, r, x, forward):
 
 
 @njit(cache=True)
-def forward_from_zero3(row_ptr, col, values, diag_inv, r, x, res):
+def forward_from_zero3(row_ptr, col, diag, values, diag_inv, r, x, res):
     """A forward :func:`gauss_seidel3` sweep from x = 0 and the residual res = r − A x after it,
-    in about one pass over the blocks instead of two: the sweep reads only the blocks left of
-    and on the diagonal (the others multiply zeros), and row i's residual is what the sweep
-    left of it, t_i − A_ii x_i, minus the blocks right of the diagonal, which the second loop
-    adds once x is complete."""
+    in one pass over the blocks instead of two: the sweep reads only the blocks left of the
+    diagonal (the others multiply zeros), and row i's residual is what the sweep left of it,
+    t_i − A_ii x_i, minus the blocks right of the diagonal, which the second loop takes once x
+    is complete."""
     n = x.shape[0]
     for i in range(n):
-        t0, t1, t2 = r[i, 0], r[i, 1], r[i, 2]
-        s = row_ptr[i]
-        while s < row_ptr[i + 1] and col[s] < i:
-            a = values[s]
-            j = col[s]
-            x0, x1, x2 = x[j, 0], x[j, 1], x[j, 2]
-            t0 -= a[0, 0] * x0 + a[0, 1] * x1 + a[0, 2] * x2
-            t1 -= a[1, 0] * x0 + a[1, 1] * x1 + a[1, 2] * x2
-            t2 -= a[2, 0] * x0 + a[2, 1] * x1 + a[2, 2] * x2
-            s += 1
+        t0, t1, t2 = _row_product3(row_ptr[i], diag[i], col, values, x, r[i, 0], r[i, 1],
+                                   r[i, 2])
         d = diag_inv[i]
         y0 = d[0, 0] * t0 + d[0, 1] * t1 + d[0, 2] * t2
         y1 = d[1, 0] * t0 + d[1, 1] * t1 + d[1, 2] * t2
         y2 = d[2, 0] * t0 + d[2, 1] * t1 + d[2, 2] * t2
         x[i, 0], x[i, 1], x[i, 2] = y0, y1, y2
-        a = values[s]  # the diagonal block: D⁻¹ may differ from its inverse (a floor, rounding)
+        a = values[diag[i]]  # D⁻¹ may differ from the block's inverse (a floor, rounding)
         res[i, 0] = t0 - (a[0, 0] * y0 + a[0, 1] * y1 + a[0, 2] * y2)
         res[i, 1] = t1 - (a[1, 0] * y0 + a[1, 1] * y1 + a[1, 2] * y2)
         res[i, 2] = t2 - (a[2, 0] * y0 + a[2, 1] * y1 + a[2, 2] * y2)
     for i in range(n):
-        t0, t1, t2 = res[i, 0], res[i, 1], res[i, 2]
-        for s in range(row_ptr[i + 1] - 1, row_ptr[i] - 1, -1):
-            j = col[s]
-            if j <= i:
-                break
-            a = values[s]
-            x0, x1, x2 = x[j, 0], x[j, 1], x[j, 2]
-            t0 -= a[0, 0] * x0 + a[0, 1] * x1 + a[0, 2] * x2
-            t1 -= a[1, 0] * x0 + a[1, 1] * x1 + a[1, 2] * x2
-            t2 -= a[2, 0] * x0 + a[2, 1] * x1 + a[2, 2] * x2
-        res[i, 0], res[i, 1], res[i, 2] = t0, t1, t2
+        res[i, 0], res[i, 1], res[i, 2] = _row_product3(diag[i] + 1, row_ptr[i + 1], col, values,
+                                                        x, res[i, 0], res[i, 1], res[i, 2])

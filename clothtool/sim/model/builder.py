@@ -17,7 +17,8 @@ from clothtool.sim.model.config import Plane, Sphere
 from clothtool.sim.model.contact_scene import build_contact_scene
 from clothtool.sim.linalg.filter import FREE, PINNED
 from clothtool.sim.linalg.blocks import BlockPattern
-from clothtool.sim.model.mesh import build_rest_mesh, flat_pattern, rest_edge_matrices
+from clothtool.sim.model.mesh import (build_rest_mesh, flat_pattern, plane_pattern,
+                                      rest_edge_matrices)
 from clothtool.sim.model.methods import barrier_contact, strain_damped
 from clothtool.sim.model.model import Model
 from clothtool.sim.model.motion import resolve_pin_entries
@@ -26,7 +27,6 @@ from clothtool.sim.energies.terms import (DihedralBending, Membrane, NodalMembra
                                  QuadraticBending, Stitch, Term)
 
 DEGENERATE = 1e-12  # rest triangle area relative to its squared longest edge
-PLANAR = 1e-9  # a rest shape within this × its extent of a plane is flat (its own pattern)
 
 
 def build_model(config):
@@ -257,17 +257,17 @@ class ModelBuilder:
         if bend_model == "hessian":
             from clothtool.sim.energies.plate import SHARPEN, plate_matrices
 
-            uv = mesh.uv if mesh.uv is not None else _plane_pattern(mesh.rest3d)
+            uv = mesh.uv if mesh.uv is not None else plane_pattern(mesh.rest3d)
             rigidity, anisotropy = self._plate_rigidity()
             q, correction = plate_matrices(
                 uv, faces, self._per_vertex(rigidity), anisotropy, pinned,
                 sharpen=SHARPEN if self.material.plate_correction else 0.0)
             plate = _csr(q if correction is None else q + correction)
             plate_matrix = None if correction is None else _csr(q)
-        membrane_model = self._membrane_model()
+        membrane_model, cells = self._membrane_model()
         terms = _elastic_terms(faces, dr_inv, self.area, self.tri_stretch, self.tri_shear,
                                bend_model, plate, n, hinge, rest_angle, coef, weights,
-                               membrane_model, plate_matrix)
+                               membrane_model, plate_matrix, cells)
         if len(self.stitches):
             terms.append(Stitch(self.stitches, self.stitch_stiffness.copy()))
         beta = self.tri_damping
@@ -302,7 +302,7 @@ class ModelBuilder:
                                            self.tri_shear * beta, bend_model, damped_plate, n,
                                            hinge, rest_angle,
                                            coef * beta[hinge_faces].mean(axis=1), weights,
-                                           membrane_model)
+                                           membrane_model, cells=cells)
             damping_constant = _bind(damping_terms, pattern)
         hinged = bend_model in ("dihedral", "quadratic")
         return Model(
@@ -354,19 +354,23 @@ class ModelBuilder:
         return np.sqrt(self.tri_bend.prod(axis=1)), float(ratio[0])
 
     def _membrane_model(self):
-        """``material.membrane_model``; ``nodal`` (and ``triangle`` when the membrane is off)."""
-        model = self.material.membrane_model
-        if model == "nodal":
-            if self.mesh.uv is None:
-                raise InputError("material.membrane_model: 'nodal' needs one rest pattern per "
-                                 "vertex (a grid, or a PLY with uv); use 'triangle'")
-            method = None if self.config is None else self.config.solver.method
-            if method not in (None, "implicit"):
-                raise InputError(f"material.membrane_model: 'nodal' works with solver.method "
-                                 f"implicit, not {method!r}; use 'triangle'")
-            if not (np.any(self.tri_stretch[:, :2] > 0.0) or np.any(self.tri_shear > 0.0)):
-                return "triangle"
-        return model
+        """(``material.membrane_model``, the nodal cells): ``nodal`` on the implicit method
+        wherever the triangles' material frames meet at a vertex: a pattern per vertex (uv, or
+        a flat mesh's own plane), or per corner (a garment's panels: a seam vertex has a cell
+        in each panel, :func:`~clothtool.sim.energies.membrane_nodal.frame_cells`); else
+        ``triangle`` (a mesh resting curved without uv, the other methods, no membrane)."""
+        from clothtool.sim.energies.membrane_nodal import frame_cells
+
+        mesh = self.mesh
+        method = None if self.config is None else self.config.solver.method
+        if (self.material.membrane_model != "nodal" or method not in (None, "implicit")
+                or not (np.any(self.tri_stretch[:, :2] > 0.0) or np.any(self.tri_shear > 0.0))):
+            return "triangle", None
+        if mesh.corner_uv is not None:
+            return "nodal", frame_cells(mesh.faces, mesh.corner_uv)
+        if mesh.uv is not None or plane_pattern(mesh.rest3d) is not None:
+            return "nodal", None
+        return "triangle", None
 
     def _bending(self):
         """(model, hinges, rest angles, c_h, quadratic weights): c_h = k_b ‖ē‖²/(2(Ā_k + Ā_l)),
@@ -397,7 +401,7 @@ class ModelBuilder:
         weights = None
         model = material.bend_model
         if model == "hessian" and mesh.uv is None and (mesh.corner_uv is not None
-                                                       or _plane_pattern(mesh.rest3d) is None):
+                                                       or plane_pattern(mesh.rest3d) is None):
             # a mesh that rests in its own curved shape or a pattern per corner (garment
             # panels): the dihedral model (a flat mesh without uv is its own pattern: its
             # plane's coordinates)
@@ -419,14 +423,16 @@ def _csr(q):
 
 
 def _elastic_terms(faces, dr_inv, area, stretch, shear, bend_model, plate, n, hinge, rest_angle,
-                   coef, weights, membrane_model="triangle", plate_matrix=None):
+                   coef, weights, membrane_model="triangle", plate_matrix=None, cells=None):
     """The membrane and bending terms (none whose stiffness is zero); ``plate_matrix``: the
     plate's Hessian in the solver's matrix when it is not ``plate`` itself (the corrected
-    plate: :class:`~clothtool.sim.energies.terms.PlateBending`)."""
+    plate: :class:`~clothtool.sim.energies.terms.PlateBending`); ``cells``: the nodal
+    membrane's cells (None: one per vertex)."""
     terms = []
     if membrane_model == "nodal":  # stretch on the vertices' smoothed metric, shear per triangle
         if np.any(stretch[:, :2] > 0.0):
-            terms.append(NodalMembrane(faces, dr_inv, area, n, stretch, np.zeros_like(shear)))
+            terms.append(NodalMembrane(faces, dr_inv, area, n, stretch, np.zeros_like(shear),
+                                       cells))
         if np.any(shear > 0.0):
             shear_only = stretch.copy()
             shear_only[:, :2] = 0.0
@@ -459,16 +465,6 @@ def _bend_pair(bend, ratio):
     if isinstance(bend, tuple):
         return np.asarray(bend, np.float64)
     return bend * np.array([np.sqrt(ratio), 1.0 / np.sqrt(ratio)])
-
-
-def _plane_pattern(rest3d):
-    """(N, 2) coordinates of a rest shape in its own plane, or None when it is not flat
-    (a vertex farther than PLANAR × its extent from the least-squares plane)."""
-    centred = rest3d - rest3d.mean(axis=0)
-    _, sv, vt = np.linalg.svd(centred, full_matrices=False)
-    if sv[2] > PLANAR * sv[0] or np.max(np.abs(centred @ vt[2])) > PLANAR * np.ptp(centred @ vt[0]):
-        return None
-    return np.ascontiguousarray(centred @ vt[:2].T)
 
 
 def _rest_edges(mesh):

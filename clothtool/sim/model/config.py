@@ -227,7 +227,8 @@ class Material(Section):
     [warp, weft]) may replace ``bend``: k_b = ρ g c³ with g = 9.81 m/s².
     ``membrane_model``: stretch and shear per ``triangle`` (linear elements), or ``nodal``:
     warp and weft stretch on each vertex's smoothed metric FᵀF (which locks less when the
-    sheet bends off the mesh's lines) and shear per triangle; implicit method only.
+    sheet bends off the mesh's lines) and shear per triangle (implicit method; the others
+    and a mesh resting curved without uv keep ``triangle``).
     ``preset`` (a measured fabric, :mod:`clothtool.fabrics`) and ``kes`` (KES-F values,
     :mod:`clothtool.lab_units`) fill the keys the section does not give; ``kes`` wins
     over ``preset``.
@@ -253,7 +254,8 @@ class Material(Section):
                                   "edge) ([Textile units](#textile-units-and-tests)); 0 turns "
                                   "bending off")
     damping: float = setting(0.01, non_negative,
-                             "s, stiffness-proportional (Rayleigh) damping; 0 = none")
+                             "s, β of the damping (`damping_model`: of the strains' change, "
+                             "or stiffness-proportional); 0 = none")
     bend_model: str = setting("hessian", choice(BEND_MODELS),
                               "`hessian` (plate bending with the stated rigidity on any mesh "
                               "that rests flat, with or without uv, panels of their own bend "
@@ -286,9 +288,11 @@ class Material(Section):
                                   "`triangle` (stretch and shear per linear triangle) or "
                                   "`nodal`: warp and weft stretch on each vertex's smoothed "
                                   "metric FᵀF, shear per triangle, so the drape depends less on "
-                                  "the mesh (the drape table's spread between a grid, a turned "
-                                  "grid and a Delaunay mesh). Needs a rest pattern per vertex (a "
-                                  "grid, or a PLY with uv) and `solver.method: implicit`")
+                                  "the mesh (linear triangles lock where a fold crosses them). "
+                                  "Any mesh that rests flat, with uv or without (its own plane), "
+                                  "garment panels included (a seam vertex has a cell in each "
+                                  "panel); a mesh resting curved without uv and the methods "
+                                  "other than `implicit` keep `triangle`")
     preset: str | None = setting(None, one_word,
                                  "a measured fabric (Wang et al. 2011, as ARCSim ships them): "
                                  "its density, stretch, shear and bend fill the keys not given "

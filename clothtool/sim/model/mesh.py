@@ -117,19 +117,35 @@ def _embed(uv):
     return np.concatenate([uv, np.zeros((len(uv), 1))], axis=1)
 
 
+PLANAR = 1e-9  # a rest shape within this × its extent of a plane is flat (its own pattern)
+
+
+def plane_pattern(rest3d):
+    """(N, 2) coordinates of a rest shape in its own plane (its principal axes), or None when
+    it is not flat (a vertex farther than PLANAR × its extent from the least-squares plane)."""
+    centred = rest3d - rest3d.mean(axis=0)
+    _, sv, vt = np.linalg.svd(centred, full_matrices=False)
+    if sv[2] > PLANAR * sv[0] or np.max(np.abs(centred @ vt[2])) > PLANAR * np.ptp(centred @ vt[0]):
+        return None
+    return np.ascontiguousarray(centred @ vt[:2].T)
+
+
 def rest_edge_matrices(mesh):
     """Per-triangle 2×2 rest edge matrix D_r = [ū1 − ū0, ū2 − ū0] (columns).
 
     From the uv coordinates when present, per corner or per vertex (so that the columns of
-    F = D_d D_r⁻¹ are the warp and weft directions w_u, w_v of Baraff–Witkin); otherwise in
-    each rest triangle's tangent frame (:func:`clothtool.geometry.tangent_edge_matrices`).
+    F = D_d D_r⁻¹ are the warp and weft directions w_u, w_v of Baraff–Witkin); a flat mesh
+    without uv is its own pattern (:func:`plane_pattern`: warp along its longest principal
+    axis, one frame for every triangle); otherwise in each rest triangle's tangent frame
+    (:func:`clothtool.geometry.tangent_edge_matrices`).
     """
     f = mesh.faces
     if mesh.corner_uv is not None:
         p = mesh.corner_uv
         return np.stack([p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]], axis=2)
-    if mesh.uv is not None:
-        p = mesh.uv[f]  # (M, 3, 2)
+    uv = mesh.uv if mesh.uv is not None else plane_pattern(mesh.rest3d)
+    if uv is not None:
+        p = uv[f]  # (M, 3, 2)
         return np.stack([p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]], axis=2)
     dm, _ = tangent_edge_matrices(np.ascontiguousarray(mesh.rest3d, np.float64), f, DEGENERATE_TOL)
     return dm
