@@ -114,12 +114,8 @@ def profile(name, out):
 
 def run(out_dir):
     out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
-    rows = []
     with tempfile.TemporaryDirectory() as tmp:
-        for name in SCENES:
-            rows += profile(name, Path(tmp) / name)
-            print(markdown_table(rows[-len(PHASES) - 2:], list(rows[0])), flush=True)
+        rows = [row for name in SCENES for row in profile(name, Path(tmp) / name)]
     columns = list(rows[0])
     write_csv(out_dir / "contact_profile.csv", rows, columns)
     table = markdown_table(rows, columns)
