@@ -385,17 +385,26 @@ def test_friction_lag_picks_the_pair_coefficient_and_skips_frictionless_pairs():
 # ---------------------------------------------------------------- reversed slips, curvature
 
 
+N_FREE, N_HELD, COUNT, EPS_V, H_EFF = 8, 3, 12, 1e-2, 1.0 / 90.0
+
+
+def mixed_pairs(seed):
+    """(rng, x, base, lag): N_FREE free and N_HELD held vertices at random, their positions
+    at the step's start ``base``, and COUNT lagged pairs, some sticking and some sliding."""
+    rng = np.random.default_rng(seed)
+    x = rng.normal(size=(N_FREE + N_HELD, 3))
+    base = x - H_EFF * rng.normal(size=x.shape)
+    return rng, x, base, random_lag(rng, N_FREE, N_HELD, COUNT, EPS_V, H_EFF, "mixed", x, base)
+
+
 @pytest.mark.parametrize("seed", [0, 1, 2])
 def test_reversed_slips_get_the_half_quadratic_bound_and_the_rest_keep_their_blocks(seed):
     """reference_slips gives each pair's slip at the velocities u; bound_reversed_slips replaces
     the block of each sliding pair whose slip points against its reference by
     (μλ/(ĥ‖v‖)) T Tᵀ — PSD, at least the exact block, equal to it across v̂ — and leaves the
     others (sticking, or sliding along their reference) as friction_assemble wrote them."""
-    rng = np.random.default_rng(seed)
-    n, n_held, count, eps_v, h_eff = 8, 3, 12, 1e-2, 1.0 / 90.0
-    x = rng.normal(size=(n + n_held, 3))
-    base = x - h_eff * rng.normal(size=x.shape)
-    lag = random_lag(rng, n, n_held, count, eps_v, h_eff, "mixed", x, base)
+    rng, x, base, lag = mixed_pairs(seed)
+    n, count, eps_v, h_eff = N_FREE, COUNT, EPS_V, H_EFF
     rows, weights, bases, mu_lambda, c = lag
     u = (x[:n] - base[:n]) / h_eff
     ref = reference_slips(u, rows, weights, bases, c, count, n)
@@ -429,11 +438,8 @@ def test_slip_overshoots_marks_sliding_pairs_a_step_turns_over_and_the_bound_tak
     """slip_overshoots marks each pair that slides at y (‖v‖ ≥ ε_v) and whose slip at
     y + step·dy points against it, keeps earlier marks, and counts the new ones; a marked
     pair takes the half-quadratic bound in bound_reversed_slips even along its reference."""
-    rng = np.random.default_rng(seed)
-    n, n_held, count, eps_v, h_eff = 8, 3, 12, 1e-2, 1.0 / 90.0
-    y = rng.normal(size=(n + n_held, 3))
-    base = y - h_eff * rng.normal(size=y.shape)
-    lag = random_lag(rng, n, n_held, count, eps_v, h_eff, "mixed", y, base)
+    rng, y, base, lag = mixed_pairs(seed)
+    n, count, eps_v, h_eff = N_FREE, COUNT, EPS_V, H_EFF
     rows, weights, bases, mu_lambda, c = lag
     dy = 3.0 * h_eff * rng.normal(size=y.shape)
     overshot = np.zeros(count, np.bool_)
