@@ -29,7 +29,6 @@ from numba import njit
 
 from clothtool.sim.linalg.aggregation import coarsen
 from clothtool.sim.linalg.blocks import BlockPattern
-from clothtool.sim.linalg.filter import PINNED
 from clothtool.sim.linalg.galerkin import galerkin, pinned_mask
 from clothtool.sim.linalg.modes import (M, coarse_prolongator, coarser_sums, fine_prolongator,
                                         node_frames, node_sums)
