@@ -9,7 +9,7 @@ import scipy.sparse as sps
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from clothtool.sim.linalg.aggregation import aggregate, coarsen
+from clothtool.sim.linalg.aggregation import aggregate, coarsen, transposes
 from clothtool.sim.linalg.blocks import BlockMatrix, BlockPattern, ConstraintFilter
 from clothtool.sim.linalg.galerkin import galerkin
 from clothtool.sim.linalg.modes import (M, coarse_prolongator, coarser_sums, fine_prolongator,
@@ -152,7 +152,8 @@ def test_galerkin_products_equal_the_sparse_triple_product(pinned):
     q = np.zeros((len(x), 3, M))
     fine_prolongator(x, ~skip, agg, *geometry, q)
     out = np.zeros((len(levels[1][1]), M, M))
-    galerkin(pattern.row_ptr, pattern.col, blocks, skip, slot_map, q, out)
+    galerkin(pattern.row_ptr, pattern.col, blocks, skip, slot_map, transposes(*levels[1]), q,
+             out)
     p = prolongator_matrix(q, agg, nc).toarray()
     s = np.diag(np.repeat(~skip, 3).astype(float))
     expected = p.T @ s @ a @ s @ p
@@ -166,7 +167,8 @@ def test_galerkin_products_equal_the_sparse_triple_product(pinned):
     tr[:, 3:, :3] = 0.0
     a1, cblocks = random_block_matrix(levels[1][0], levels[1][1], M, rng)
     cout = np.zeros((len(levels[2][1]), M, M))
-    galerkin(levels[1][0], levels[1][1], cblocks, np.zeros(nc, bool), cslot, tr, cout)
+    galerkin(levels[1][0], levels[1][1], cblocks, np.zeros(nc, bool), cslot,
+             transposes(*levels[2]), tr, cout)
     t = prolongator_matrix(tr, cagg, cn).toarray()
     expected = t.T @ a1 @ t
     got = sps.bsr_matrix((cout, levels[2][1], levels[2][0]), shape=expected.shape).toarray()
