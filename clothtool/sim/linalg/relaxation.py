@@ -47,6 +47,15 @@ def _solve_node(d, t, x, i):
 
 
 @njit(cache=True)
+def residual(row_ptr, col, values, r, x, out):
+    """out = r − A x (a coarse level)."""
+    for i in range(x.shape[0]):
+        for p in range(M):
+            out[i, p] = r[i, p]
+        _subtract_products(row_ptr[i], row_ptr[i + 1], col, values, x, out[i])
+
+
+@njit(cache=True)
 def gauss_seidel(row_ptr, col, diag, values, diag_inv, r, x, forward):
     """One block Gauss–Seidel sweep on A x = r, x (n, M) updated in place (a coarse level);
     ``diag`` the slot of each row's diagonal block, ``diag_inv`` the inverses of those blocks
