@@ -16,18 +16,12 @@ $(VENV)/.installed: pyproject.toml
 	$(PY) -m pip install --quiet --disable-pip-version-check -e '.[test,bench]'
 	touch $@
 
-# the demo needs clothtool and matplotlib only (the test and bench extras are most of the install)
-$(VENV)/.demo: pyproject.toml
-	if [ ! $(VENV)/.installed -nt pyproject.toml ]; then $(PYTHON) -m venv $(VENV) && \
-	  $(PY) -m pip install --quiet --disable-pip-version-check -e '.[plot]'; fi
-	touch $@
-
-# Its four parts two at a time: in a fresh clone most of each is numba compiling its kernels
-# (one core each); the garment after the drape, whose contact kernels it uses.
+# The demo's four parts two at a time: in a fresh clone most of each is numba compiling its
+# kernels (one core each); the garment after the drape, whose contact kernels it uses.
 DEMO_PARTS := demo-sheet demo-hanging demo-drape demo-garment
 .PHONY: $(DEMO_PARTS)
 
-demo: $(VENV)/.demo
+demo: $(VENV)/.installed
 	mkdir -p demo-out
 	$(MAKE) --no-print-directory -j2 --output-sync=target $(DEMO_PARTS)
 	@echo "open demo-out/*.xdmf in ParaView; figures: demo-out/hanging_sheet.png, demo-out/drape.png,"
