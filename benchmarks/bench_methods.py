@@ -112,7 +112,8 @@ def _source_digest():
 def reference(name, out_dir):
     """The converged reference (BDF2, 128 steps per frame, solved tightly) as a dict:
     ``positions`` (frame → (N, 3)), ``distance_to_half_step_m`` (to the same at 64 steps per
-    frame, its convergence), ``newton_per_step``, ``seconds`` (to compute it) and ``cached``;
+    frame, its convergence; ``--full`` only, nan without: a third of the references' time),
+    ``newton_per_step``, ``seconds`` (to compute it) and ``cached``;
     read from ``out_dir`` when a file with the same key is there, else computed and saved."""
     config = scene(name, "implicit", REF_STEPS, **TIGHT)
     key = hashlib.sha256(json.dumps([config, REF_STEPS, CHECKPOINTS], sort_keys=True).encode()
@@ -127,8 +128,9 @@ def reference(name, out_dir):
     t0 = time.perf_counter()
     fine = run_in_memory(config, CHECKPOINTS, warmup=False)
     half = run_in_memory(scene(name, "implicit", REF_STEPS // 2, **TIGHT), CHECKPOINTS,
-                         warmup=False)
-    ref = dict(positions=fine.positions, distance_to_half_step_m=error(half, fine.positions),
+                         warmup=False) if FULL else None
+    ref = dict(positions=fine.positions,
+               distance_to_half_step_m=error(half, fine.positions) if half else math.nan,
                newton_per_step=fine.newton_iterations / max(fine.frames_done * REF_STEPS, 1),
                seconds=time.perf_counter() - t0, cached="no")
     for old in out_dir.glob(f"methods_reference_{name}_*.npz"):
@@ -518,7 +520,7 @@ def run(out_dir):
           "Error: the largest vertex distance to the reference over every frame. Reference: "
           f"implicit, BDF2, {REF_STEPS} steps per frame, Newton and PCG solved tightly (the "
           "default's own ODE, damping included); `distance_to_half_step_m` is its distance to "
-          f"the same at {REF_STEPS // 2} steps per frame. Wall time: kernels compiled, no output, "
+          f"the same at {REF_STEPS // 2} steps per frame (`--full` only). Wall time: kernels compiled, no output, "
           "on a shared 2-core machine (load varies: treat differences under ~30 % as noise). "
           "`iterations`: sweeps or local–global iterations per step; `explicit` picks its own "
           f"internal steps (cfl 0.5) and is not run where it would take more than "
