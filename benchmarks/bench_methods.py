@@ -12,9 +12,9 @@ Writes into the output folder:
   1 cm and more, and the orders of convergence of ``euler`` and ``bdf2`` (error at h,
   h/2, h/4); ``methods_<scene>.png``: error against time, the front drawn, the default
   marked (skipped with a message without matplotlib);
-- under ``--full``: ``stability.csv`` / ``stability.md``: time step × stretch stiffness per
-  method, from a random initial state and from a fully flattened one; ``profile.md``: where
-  a step's time goes, stage by stage (and docs/solvers.md's tables of both).
+- ``stability.csv`` / ``stability.md``: time step × stretch stiffness per method, from a
+  random initial state and from a fully flattened one;
+- ``profile.md``: where a step's time goes, stage by stage.
 
 The scenes, 0.5 s at 30 fps (15 frames):
 
@@ -551,9 +551,6 @@ def run(out_dir):
     (out_dir / "methods.md").write_text("\n".join(md))
     doc_tables(rows, verdicts)
     print(f"  methods done in {time.perf_counter() - started:.0f} s", flush=True)
-    if not FULL:
-        print("  stability and profile: `python -m benchmarks --full methods`")
-        return
     stability(out_dir)
     print(f"  stability done in {time.perf_counter() - started:.0f} s", flush=True)
     profile(out_dir)
