@@ -11,6 +11,9 @@
     python -m benchmarks linalg          # preconditioners' phases; the step vs earlier commits
     python -m benchmarks --full [NAMES]  # the long cases too (benchmarks/common.py: FULL), and
                                          # the benchmarks of FULL_ONLY
+
+A doc's measured table that the default cases would shorten is written under --full only
+(common.write_doc_table's ``full_only``); bench-results/ gets every benchmark's files either way.
 """
 
 import importlib

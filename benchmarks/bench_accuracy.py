@@ -22,8 +22,8 @@ Writes ``accuracy.md`` and ``accuracy.png`` into the output folder:
 - BDF2's order with each bending model: the small plate of tests/test_sim_accuracy.py
   (6×6, stretch 1e3 N/m, shear 1e2 N/m, bend 1e-2 N·m, no damping, 0.3 s) pinned at a corner
   in two triangles (vertex 0), at a corner in one (vertex 5) and at its top corners, solved
-  tightly (Newton to 1e-7 m/s) at 4–32 steps per frame (``--full``: to 128) against 256
-  (``--full``: 512): the largest vertex distance at 0.3 s and its ratio to ``dihedral``'s.
+  tightly (Newton to 1e-7 m/s) at 4–128 steps per frame against 512: the largest vertex
+  distance at 0.3 s and its ratio to ``dihedral``'s (``--full`` only).
 """
 
 import math
@@ -34,7 +34,7 @@ import time
 
 import numpy as np
 
-from benchmarks.common import full_or, markdown_table, pyplot, write_doc_table
+from benchmarks.common import FULL, full_or, markdown_table, pyplot, write_doc_table
 
 FRAMES = 15  # 0.5 s at 30 fps
 EARLY = 6  # 0.2 s: the orders there too
@@ -54,8 +54,8 @@ ROOT = pathlib.Path(__file__).resolve().parents[1]
 SMALL_PLATE = {"stretch": 1e3, "shear": 1e2, "bend": 1e-2, "damping": 0.0}
 SMALL_PINS = (("corner in two triangles", [0]), ("corner in one triangle", [5]),
               ("top corners", ["top_corners"]))
-SMALL_STEPS = full_or((4, 8, 16, 32, 64, 128), (4, 8, 16, 32))
-SMALL_REF = full_or(512, 256)
+SMALL_STEPS = (4, 8, 16, 32, 64, 128)  # --full only
+SMALL_REF = 512
 # Newton to 1e-7 m/s: at 1e-5 the solves' error could add up to h·1e-5 per step, 2e-5 m over
 # the 288 steps of 32 per frame, a fifth of their error (1e-4 m); at 1e-9 Newton runs to its
 # cap of 60 on most steps (the line search meets E's rounding)
@@ -261,7 +261,7 @@ def run(out_dir):
     cost = cost_rows()
     stiff = stiff_rows()
     starts = start_rows()
-    orders = small_plate_rows()
+    orders = small_plate_rows() if FULL else None  # six references at 512 steps per frame
     md = ["## Accuracy at one step per frame (BDF2 against backward Euler)\n",
           "Plate: 0.5 m × 0.5 m, 12×12 grid, stretch 1e4 N/m, shear 1e3 N/m, bend 1e-3 N·m, "
           "no damping, pinned at one corner, released horizontally, 30 fps. Error: the largest "
@@ -305,7 +305,8 @@ def run(out_dir):
                                    "newton_per_step"]),
            "\n### BDF2's order with each bending model (the small plate)\n",
            markdown_table(orders, ["pinned", "model", "steps_per_frame", "error_m", "order",
-                                   "to_dihedral"]),
+                                   "to_dihedral"]) if orders else
+           "`python -m benchmarks --full accuracy` measures it.\n",
            f"\nTotal benchmark time {time.perf_counter() - started:.0f} s.\n"]
     (out_dir / "accuracy.md").write_text("\n".join(md))
     doc = "docs/simulate.md"
@@ -317,8 +318,10 @@ def run(out_dir):
         "stretch", "setting", "from_tight_m", "from_fine_m", "drop_m"]), "accuracy")
     write_doc_table(doc, "accuracy-starts", markdown_table(starts, [
         "start", "stretch", "status", "final_max_stretch", "newton_per_step"]), "accuracy")
-    write_doc_table(doc, "accuracy-orders", markdown_table(orders, [
-        "pinned", "model", "steps_per_frame", "error_m", "order", "to_dihedral"]), "accuracy")
+    if orders:
+        write_doc_table(doc, "accuracy-orders", markdown_table(orders, [
+            "pinned", "model", "steps_per_frame", "error_m", "order", "to_dihedral"]),
+            "accuracy")
     return rows, cost, stiff, starts, orders
 
 

@@ -1,6 +1,6 @@
 """The contact scenes of issue 12 end to end: speed, intersection checks, NVIDIA Newton's twist.
 
-    python benchmarks/bench_contact_scenes.py [OUT_DIR]          # default bench-results/
+    python -m benchmarks contact_scenes   # or: python -m benchmarks.bench_contact_scenes [OUT_DIR]
 
 - the twist (``sample_data/twist.yaml``, 50 × 50, 60 fps, one step per frame; its first 2 s,
   ``--full``: all 6 s): median
@@ -15,9 +15,10 @@
   test on the cloth and its colliders, and the smallest ``min_separation`` of stats.csv;
 - a scene without contact (the 64 × 64 hanging sheet, 10 frames, one Newton step) on this
   tree and on a base revision (``CLOTHTOOL_BASE_REV``, default ``main``; its files from git),
-  alternating (3 runs each, ``--full``: 5), for the ±5 % cost check.
+  alternating (5 runs each), for the ±5 % cost check: ``--full`` only.
 
-Writes ``contact_scenes.csv`` and ``contact_scenes.md`` into OUT_DIR.
+Writes ``contact_scenes.csv`` and ``contact_scenes.md`` into OUT_DIR, and under ``--full``
+docs/simulate.md's table (the whole twist, the comparison).
 """
 
 import csv
@@ -33,7 +34,7 @@ from pathlib import Path
 import ipctk
 import numpy as np
 
-from benchmarks.common import full_or, markdown_table, write_csv, write_doc_table
+from benchmarks.common import FULL, full_or, markdown_table, write_csv, write_doc_table
 from clothtool.contact.broadphase import mesh_edges
 from clothtool.contact.intersect import has_intersections
 from clothtool.io.ply import read_ply
@@ -46,7 +47,7 @@ SCENES = ("twist", "drape", "stack", "tablecloth")
 # The twist's frames: its first 2 s by default (the sheet wound once, the contact dense from
 # frame 60 on), all 6 s under --full; Newton's twist runs as many. The other scenes full length.
 TWIST_FRAMES = full_or(360, 120)
-NO_CONTACT_REPEAT = full_or(5, 3)  # alternating runs of the scene without contact
+NO_CONTACT_REPEAT = 5  # alternating runs of the scene without contact
 NEWTON_SCRIPT = Path(os.environ.get("CLOTHTOOL_NEWTON_TWIST",
                                     ROOT.parent / "shared" / "anchors" / "newton_twist.py"))
 NEWTON_PYTHON = os.environ.get("CLOTHTOOL_NEWTON_PYTHON", sys.executable)
@@ -160,7 +161,7 @@ def run(out_dir):
             print(rows[-1], flush=True)
     newton = newton_twist()
     rows.insert(1, newton or {"scene": "twist: NVIDIA Newton VBD", "median step ms/frame": "not installed"})
-    rev = base_rev()
+    rev = base_rev() if FULL else None  # its own tree's kernels compiled: --full only
     this, base = no_contact_cost(rev) if rev else (None, None)
     columns = ["scene", "vertices", "frames", "median step ms/frame", "wall ms/frame", "CPU ms/frame",
                "crossing frames (ipctk)", "crossing frames (ours)", "min separation mm"]
@@ -170,19 +171,22 @@ def run(out_dir):
             "steps' wall time (stats.csv `wall_s`); `wall`/`CPU ms/frame`: the whole run, with "
             "writing and the exact check of every frame, per frame. Crossing frames: frames in "
             "which some cloth triangle crosses another or a collider's. Written by "
-            "`python benchmarks/bench_contact_scenes.py`.\n\n" + markdown_table(rows, columns)
+            "`python -m benchmarks contact_scenes`.\n\n" + markdown_table(rows, columns)
             + (f"\nA scene without contact (64 × 64 hanging sheet, CPU ms per step, median of "
                f"{NO_CONTACT_REPEAT} alternating runs): this tree {this:.2f}, {rev} {base:.2f} "
                f"({100.0 * (this / base - 1.0):+.1f} %).\n" if rev else
-               f"\nNo {BASE_REV} in this clone: no comparison of a scene without contact.\n"))
+               f"\nNo {BASE_REV} in this clone: no comparison of a scene without contact.\n"
+               if FULL else "\n`--full` compares a scene without contact with "
+               f"{BASE_REV}.\n"))
     (out_dir / "contact_scenes.md").write_text(text)
     doc = [{**r, "solver": "clothtool"} for r in rows]
     doc[1].update(scene="twist", solver="NVIDIA Newton VBD")
     write_doc_table("docs/simulate.md", "contact-scenes", markdown_table(
         doc, ["scene", "solver"] + columns[1:]) + (
-        f"\nA scene without contact (64 × 64 hanging sheet, CPU ms per step, median of 5 "
-        f"alternating runs): this tree {this:.2f}, {rev} {base:.2f} "
-        f"({100.0 * (this / base - 1.0):+.1f} %).\n" if rev else ""), "contact_scenes")
+        f"\nA scene without contact (64 × 64 hanging sheet, CPU ms per step, median of "
+        f"{NO_CONTACT_REPEAT} alternating runs): this tree {this:.2f}, {rev} {base:.2f} "
+        f"({100.0 * (this / base - 1.0):+.1f} %).\n" if rev else ""), "contact_scenes",
+        full_only=True)
     print(text)
 
 

@@ -2,7 +2,8 @@
 
     python -m benchmarks fabrics
 
-Writes ``bench-results/fabrics.md`` and the presets' and denims' tables of docs/simulate.md:
+Writes ``bench-results/fabrics.md`` (and, under ``--full``, the presets' and denims' tables of
+docs/simulate.md):
 
 - every preset (``material.preset``, :mod:`clothtool.fabrics`): the bending length its
   own data predict along warp (u) and weft (v), c = (B/(ρg))^(1/3), against the simulated
@@ -10,14 +11,15 @@ Writes ``bench-results/fabrics.md`` and the presets' and denims' tables of docs/
   overhang 2c, 20 divisions, static equilibrium, read through the elastica), and its
   simulated Cusick drape coefficient (:func:`clothtool.sim.lab_sheet.simulated_drape`: a
   10 mm grid disc clamped at 9 cm, damping 0.05 s, brought to rest) with its discretisation
-  error at 10 mm (the change from a 14 mm disc, :func:`clothtool.sim.textile.drape_error`);
+  error at 10 mm (the change from a 14 mm disc, :func:`clothtool.sim.textile.drape_error`):
+  the drapes under ``--full`` only, so only ``--full`` writes the docs' tables;
 - Kumari & Khurana 2016's six denims (J. Textiles 4614168, Table 5: EMT, B, G, W as
   printed, one value per fabric) as material blocks, the same two tests.
 """
 
 import time
 
-from benchmarks.common import markdown_table, write_doc_table
+from benchmarks.common import FULL, markdown_table, write_doc_table
 
 # Kumari & Khurana 2016, Table 5 ("Primary hand values"), fabrics A–F: EMT %, B gf·cm²/cm,
 # G gf/(cm·deg), W mg/cm² (as printed: 94–109 mg/cm², i.e. 0.94–1.09 kg/m²)
@@ -49,9 +51,10 @@ def lab_rows(name, material):
         row[f"simulated {direction} cm"] = f"{simulated:.3f}"
         row["errors"].append(100 * (simulated / predicted[i] - 1))
         row[f"{direction} error"] = f"{row['errors'][-1]:+.2f} %"
-    drape = simulated_drape(resolved)
-    row["dc"] = drape.coefficient
-    row["drape coefficient"] = f"{100 * drape.coefficient:.1f} % ± {100 * drape.error:.1f}"
+    if FULL:  # most of the benchmark's time: the denims' drapes alone about 20 s each
+        drape = simulated_drape(resolved)
+        row["dc"] = drape.coefficient
+        row["drape coefficient"] = f"{100 * drape.coefficient:.1f} % ± {100 * drape.error:.1f}"
     row["wall s"] = f"{time.perf_counter() - started:.0f}"
     print("  ", {k: v for k, v in row.items() if k not in ("material", "errors")}, flush=True)
     return row
@@ -100,21 +103,23 @@ def run(out_dir):
     denims = [lab_rows(f"K&K {name}", {"kes": {"EMT": emt, "B": b, "G": g, "W": w}})
               for name, (emt, b, g, w) in KUMARI_KHURANA.items()]
     columns = ["fabric", "c warp cm", "simulated warp cm", "warp error", "c weft cm",
-               "simulated weft cm", "weft error", "drape coefficient", "wall s"]
+               "simulated weft cm", "weft error"] + ["drape coefficient"] * FULL + ["wall s"]
     text = ("## Measured fabrics\n\n`python -m benchmarks fabrics`: bending length predicted, "
             "(B/(ρg))^(1/3), against the simulated cantilever's (grid strip, overhang 2c, 20 "
             "divisions, static equilibrium, read through the elastica); Cusick drape "
             "coefficient (30 cm disc clamped on an 18 cm pedestal, 10 mm grid, damping 0.05 s, "
-            "at rest) ± its discretisation error (the change from a 14 mm disc).\n\n"
+            "at rest) ± its discretisation error (the change from a 14 mm disc)"
+            + ("" if FULL else ": `python -m benchmarks --full fabrics`") + ".\n\n"
             "### Presets (Wang et al. 2011 via ARCSim)\n\n"
             + markdown_table(presets, columns)
             + "\n### Kumari & Khurana 2016's denims (KES-F, Table 5; W as printed)\n\n"
             + markdown_table(denims, columns))
     (out_dir / "fabrics.md").write_text(text)
-    rows = [preset_doc_row(r) for r in presets]
-    write_doc_table("docs/simulate.md", "fabrics-presets", markdown_table(rows, list(rows[0])),
-                    "fabrics")
-    rows = [denim_doc_row(r, v) for r, v in zip(denims, KUMARI_KHURANA.values())]
-    write_doc_table("docs/simulate.md", "fabrics-denims", markdown_table(rows, list(rows[0])),
-                    "fabrics")
+    if FULL:
+        rows = [preset_doc_row(r) for r in presets]
+        write_doc_table("docs/simulate.md", "fabrics-presets",
+                        markdown_table(rows, list(rows[0])), "fabrics")
+        rows = [denim_doc_row(r, v) for r, v in zip(denims, KUMARI_KHURANA.values())]
+        write_doc_table("docs/simulate.md", "fabrics-denims",
+                        markdown_table(rows, list(rows[0])), "fabrics")
     print(f"  fabrics benchmark in {time.perf_counter() - started:.0f} s")

@@ -12,9 +12,9 @@ Writes into the output folder:
   1 cm and more, and the orders of convergence of ``euler`` and ``bdf2`` (error at h,
   h/2, h/4); ``methods_<scene>.png``: error against time, the front drawn, the default
   marked (skipped with a message without matplotlib);
-- ``stability.csv`` / ``stability.md``: time step × stretch stiffness per method, from a
-  random initial state and from a fully flattened one;
-- ``profile.md``: where a step's time goes, stage by stage.
+- under ``--full``: ``stability.csv`` / ``stability.md``: time step × stretch stiffness per
+  method, from a random initial state and from a fully flattened one; ``profile.md``: where
+  a step's time goes, stage by stage (and docs/solvers.md's tables of both).
 
 The scenes, 0.5 s at 30 fps (15 frames):
 
@@ -44,7 +44,7 @@ import time
 import numpy as np
 import yaml
 
-from benchmarks.common import full_or, markdown_table, pyplot, write_csv, write_doc_table
+from benchmarks.common import FULL, full_or, markdown_table, pyplot, write_csv, write_doc_table
 from clothtool.sim.solvers.compare import run_in_memory
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
@@ -112,7 +112,8 @@ def _source_digest():
 def reference(name, out_dir):
     """The converged reference (BDF2, 128 steps per frame, solved tightly) as a dict:
     ``positions`` (frame → (N, 3)), ``distance_to_half_step_m`` (to the same at 64 steps per
-    frame, its convergence), ``newton_per_step``, ``seconds`` (to compute it) and ``cached``;
+    frame, its convergence; ``--full`` only, nan without: a third of the references' time),
+    ``newton_per_step``, ``seconds`` (to compute it) and ``cached``;
     read from ``out_dir`` when a file with the same key is there, else computed and saved."""
     config = scene(name, "implicit", REF_STEPS, **TIGHT)
     key = hashlib.sha256(json.dumps([config, REF_STEPS, CHECKPOINTS], sort_keys=True).encode()
@@ -127,8 +128,9 @@ def reference(name, out_dir):
     t0 = time.perf_counter()
     fine = run_in_memory(config, CHECKPOINTS, warmup=False)
     half = run_in_memory(scene(name, "implicit", REF_STEPS // 2, **TIGHT), CHECKPOINTS,
-                         warmup=False)
-    ref = dict(positions=fine.positions, distance_to_half_step_m=error(half, fine.positions),
+                         warmup=False) if FULL else None
+    ref = dict(positions=fine.positions,
+               distance_to_half_step_m=error(half, fine.positions) if half else math.nan,
                newton_per_step=fine.newton_iterations / max(fine.frames_done * REF_STEPS, 1),
                seconds=time.perf_counter() - t0, cached="no")
     for old in out_dir.glob(f"methods_reference_{name}_*.npz"):
@@ -518,7 +520,7 @@ def run(out_dir):
           "Error: the largest vertex distance to the reference over every frame. Reference: "
           f"implicit, BDF2, {REF_STEPS} steps per frame, Newton and PCG solved tightly (the "
           "default's own ODE, damping included); `distance_to_half_step_m` is its distance to "
-          f"the same at {REF_STEPS // 2} steps per frame. Wall time: kernels compiled, no output, "
+          f"the same at {REF_STEPS // 2} steps per frame (`--full` only). Wall time: kernels compiled, no output, "
           "on a shared 2-core machine (load varies: treat differences under ~30 % as noise). "
           "`iterations`: sweeps or local–global iterations per step; `explicit` picks its own "
           f"internal steps (cfl 0.5) and is not run where it would take more than "
@@ -549,6 +551,9 @@ def run(out_dir):
     (out_dir / "methods.md").write_text("\n".join(md))
     doc_tables(rows, verdicts)
     print(f"  methods done in {time.perf_counter() - started:.0f} s", flush=True)
+    if not FULL:
+        print("  stability and profile: `python -m benchmarks --full methods`")
+        return
     stability(out_dir)
     print(f"  stability done in {time.perf_counter() - started:.0f} s", flush=True)
     profile(out_dir)

@@ -1,12 +1,13 @@
 """Speed, accuracy and stability of ``clothtool simulate`` on the hanging-sheet scene.
 
-    python benchmarks/bench_sim.py [OUT_DIR]          # default bench-results/
+    python -m benchmarks sim     # or: python -m benchmarks.bench_sim [OUT_DIR]
 
 Writes ``sim_speed.csv`` and ``sim_speed.md`` into OUT_DIR:
 
 - speed: ms per step (median over the steps of one run; wall clock and the
   process's CPU time, which other processes on a shared machine disturb less)
-  for 32², 64², 128² grids of sample_data/hanging_sheet.yaml at one step per frame
+  for 32² and 64² grids (``--full``: and 128², which the docs' table shows) of
+  sample_data/hanging_sheet.yaml at one step per frame
   (30 fps): Baraff–Witkin's linearised step (backward Euler, one Newton step) for
   each preconditioner and PCG tolerance, and the default (BDF2, Newton to
   ``solver.newton_tolerance``), with the mean PCG iterations per step, the CPU cost
@@ -30,9 +31,12 @@ from pathlib import Path
 
 import numpy as np
 
+from benchmarks.common import full_or, write_doc_table
+
 ROOT = Path(__file__).resolve().parents[1]
 SCENE = ROOT / "sample_data" / "hanging_sheet.yaml"
-SIZES = (32, 64, 128)
+# 128²: most of the benchmark's time (its reference and converged runs), so --full only
+SIZES = full_or((32, 64, 128), (32, 64))
 # Baraff–Witkin's linearised step (backward Euler, one Newton step: the default until BDF2)
 ONE_STEP = {"solver.integrator": "euler", "solver.newton_iterations": 1,
             "solver.newton_tolerance": 1e-6}
@@ -173,12 +177,11 @@ def run(out_dir="bench-results"):
                  f"{k:g} N/m: {v:g} s" for k, v in largest.items()) + ".",
              "", f"Total benchmark time {time.perf_counter() - started:.0f} s."]
     (out_dir / "sim_speed.md").write_text("\n".join(lines) + "\n")
-    from benchmarks.common import write_doc_table
-
     keep = ("grid", "setting", "preconditioner", "tolerance", "ms_per_step_cpu", "cg_iterations",
             "ns_per_vertex_iteration", "solver_error_mm", "max_error_mm")
     write_doc_table("docs/simulate.md", "sim-speed", _table([{k: r[k] for k in keep}
-                                                               for r in speed]), "sim")
+                                                               for r in speed]), "sim",
+                    full_only=True)
     write_doc_table("docs/simulate.md", "sim-stability", _table(stability), "sim")
     with open(out_dir / "sim_stability.csv", "w", newline="") as fh:
         writer = csv.DictWriter(fh, fieldnames=list(stability[0]))
@@ -195,5 +198,4 @@ def _table(rows):
 
 
 if __name__ == "__main__":
-    sys.path.insert(0, str(ROOT))
     run(sys.argv[1] if len(sys.argv) > 1 else ROOT / "bench-results")

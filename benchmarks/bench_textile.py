@@ -6,21 +6,25 @@ Writes ``bench-results/textile.md`` and ``textile_drape.png``:
 
 - cantilever (ASTM D1388): tip drop against the elastica at overhangs of 1, 2 and 3
   bending lengths, strips along and across a grid, at 45° to one, on Delaunay meshes from
-  two seeds and on a grid jittered by 35 % of the spacing, at 20 and 40 divisions along the
-  strip (by default the non-default models at 20 only), for the ``hessian`` bending (the
+  two seeds and on a grid jittered by 35 % of the spacing, at 20 divisions along the strip
+  (``--full``: and 40), for the ``hessian`` bending (the
   default) with the ``triangle`` (the default) and ``nodal`` membranes and for ``dihedral``
   (static equilibrium, :mod:`clothtool.sim.solve.statics`);
 - hanging strips along warp, weft and bias against ρgL²/(2k) (k along the bias from
   :func:`clothtool.sim.textile.bias_modulus`), with each membrane model;
 - Cusick drape (BS 5058: a 30 cm disc on an 18 cm pedestal): the drape coefficient on a
   grid, the grid turned 45° and a Delaunay mesh at 10 mm (and 7.5 mm under ``--full``),
-  with each membrane model, simulated to rest with the implicit method (a 6-fold ripple
+  with the ``triangle`` membrane (``--full``: each membrane model), simulated to rest with the implicit method (a 6-fold ripple
   of 2 mm seeds the folds alike on every mesh);
-- the membrane models' cost: ms/step of the 64×64 hanging sheet, alternating in one run;
-- cost: the 64×64 hanging sheet (sample_data/hanging_sheet.yaml) at one step per frame, CPU
-  ms per step with bending and with ``bend: 0``, in this checkout and in a clone of the
-  commit before the plate model (``BASE`` below, made with ``git clone``); bending's share
-  is the difference; alternating runs in one process each (1, ``--full``: 3, the median).
+- ``--full`` only: the membrane models' cost: ms/step of the 64×64 hanging sheet,
+  alternating in one run; bending's cost: the 64×64 hanging sheet
+  (sample_data/hanging_sheet.yaml) at one step per frame, CPU ms per step with bending and
+  with ``bend: 0``, in this checkout and in a clone of the commit before the plate model
+  (``BASE`` below, made with ``git clone``); bending's share is the difference; 3
+  alternating runs in one process each, the median.
+
+Only ``--full`` writes docs/simulate.md's cantilever and drape tables (they show 40 divisions,
+7.5 mm and the nodal membrane); the hanging strips' table is the same in both.
 """
 
 import os
@@ -33,7 +37,7 @@ from pathlib import Path
 
 import numpy as np
 
-from benchmarks.common import full_or, markdown_table, pyplot, sim_imports, write_doc_table
+from benchmarks.common import FULL, full_or, markdown_table, pyplot, sim_imports, write_doc_table
 
 HERE = Path(__file__).resolve().parent.parent
 BASE_COMMIT = "1e6cea5"
@@ -41,12 +45,14 @@ BASE = Path(os.environ.get("CLOTHTOOL_BASE", f"/tmp/base-{os.getpid()}"))
 G = 9.81
 DEFAULT_BEND, DEFAULT_MEMBRANE = "hessian", "triangle"  # material.bend_model, membrane_model
 DRAPE_SPACINGS = full_or((0.01, 0.0075), (0.01,))  # m; the picture shows the finest
+DRAPE_MEMBRANES = full_or(("triangle", "nodal"), ("triangle",))  # material.membrane_model
 # Alternating runs of each cost comparison (a process each: start-up and kernel loading are
 # most of its CPU time); the figure is the median of 20 steps' CPU time in each run.
-COST_REPEAT = full_or(3, 1)
+COST_REPEAT = 3
 # Divisions along the cantilever strip, for the other models and for the defaults: a 40-division
-# strip costs about 4× a 20-division one; by default only the default model shows both.
-CANTILEVER_DIVISIONS = {False: full_or((20, 40), (20,)), True: (20, 40)}
+# strip costs about 4× a 20-division one, so 40 under --full only (and only it writes the doc's
+# table, which shows both).
+CANTILEVER_DIVISIONS = {False: full_or((20, 40), (20,)), True: full_or((20, 40), (20,))}
 
 
 def cantilever_rows():
@@ -155,9 +161,9 @@ def drape(kind, spacing, **material):
 
 def drape_rows(out_dir):
     rows, shown = [], {}
-    drape("grid", 0.02, bend_model="hessian", membrane_model="nodal")  # compile the kernels
-    drape("grid", 0.02, bend_model="hessian")
-    for membrane in ("triangle", "nodal"):
+    for membrane in DRAPE_MEMBRANES:  # compile the kernels
+        drape("grid", 0.02, bend_model="hessian", membrane_model=membrane)
+    for membrane in DRAPE_MEMBRANES:
         for spacing in DRAPE_SPACINGS:
             for kind in ("grid", "rot45", "delaunay"):
                 x, faces, dc, folds, wall, speed = drape(kind, spacing, bend_model="hessian",
@@ -169,7 +175,7 @@ def drape_rows(out_dir):
                 print("  drape", rows[-1], flush=True)
                 if spacing == DRAPE_SPACINGS[-1]:
                     shown[(membrane, kind)] = (x, faces, dc)
-    for membrane in ("triangle", "nodal"):
+    for membrane in DRAPE_MEMBRANES:
         mine = [r for r in rows if r.get("membrane") == membrane and "vertices" in r]
         for spacing in DRAPE_SPACINGS:
             values = [float(r["drape coefficient"]) for r in mine
@@ -296,18 +302,22 @@ def membrane_cost_rows(repeat=COST_REPEAT, frames=20):
 
 def run(out_dir):
     out_dir = Path(out_dir)
-    sections = []
+    sections, tables = [], []
     started = time.perf_counter()
-    cost = cost_rows()
-    sections.append("### Cost: 64×64 hanging sheet, one step per frame\n\nCPU ms per step "
-                    f"(median of 20 steps, {COST_REPEAT} alternating run(s) each; bending's "
-                    "share = with − "
-                    "without bending):\n\n" + markdown_table(cost, list(cost[0])))
-    membrane_cost = membrane_cost_rows()
-    sections.append("### Cost of the membrane models: 64×64 hanging sheet, hessian bending\n\n"
-                    f"CPU ms per step (median of 20 steps, {COST_REPEAT} alternating run(s) "
-                    "each):\n\n"
-                    + markdown_table(membrane_cost, list(membrane_cost[0])))
+    if FULL:  # each cost run a process of its own, the commit before the plate in a clone
+        cost = cost_rows()
+        sections.append("### Cost: 64×64 hanging sheet, one step per frame\n\nCPU ms per step "
+                        f"(median of 20 steps, {COST_REPEAT} alternating run(s) each; bending's "
+                        "share = with − without bending):\n\n" + markdown_table(cost, list(cost[0])))
+        membrane_cost = membrane_cost_rows()
+        sections.append("### Cost of the membrane models: 64×64 hanging sheet, hessian bending"
+                        f"\n\nCPU ms per step (median of 20 steps, {COST_REPEAT} alternating run(s) "
+                        "each):\n\n" + markdown_table(membrane_cost, list(membrane_cost[0])))
+        tables += [("textile-cost", cost, list(cost[0])),
+                   ("textile-membrane-cost", membrane_cost, list(membrane_cost[0]))]
+    else:
+        sections.append("### Cost\n\nBending's and the membrane models' cost on the 64×64 "
+                        "hanging sheet: `python -m benchmarks --full textile`.\n")
     cant = cantilever_rows()
     sections.append("### Cantilever (ASTM D1388) against the elastica\n\n0.1 m × 25 mm strip, "
                     "0.2 kg/m², stretch 5000 N/m, shear 50 N/m, bending length 0.1/n m for an "
@@ -326,10 +336,10 @@ def run(out_dir):
                     + markdown_table(dr, cols))
     text = "## Textile tests\n\n`python -m benchmarks textile`\n\n" + "\n".join(sections)
     (out_dir / "textile.md").write_text(text)
-    for name, rows, columns in (("textile-cost", cost, list(cost[0])),
-                                ("textile-membrane-cost", membrane_cost, list(membrane_cost[0])),
-                                ("textile-cantilever", cant, list(cant[0])),
-                                ("textile-hanging", hang, list(hang[0])),
-                                ("textile-drape", dr, cols)):
-        write_doc_table("docs/simulate.md", name, markdown_table(rows, columns), "textile")
+    tables += [("textile-cantilever", cant, list(cant[0])),
+               ("textile-hanging", hang, list(hang[0])),
+               ("textile-drape", dr, cols)]
+    for name, rows, columns in tables:
+        write_doc_table("docs/simulate.md", name, markdown_table(rows, columns), "textile",
+                        full_only=name in ("textile-cantilever", "textile-drape"))
     print(f"  textile benchmark in {time.perf_counter() - started:.0f} s")

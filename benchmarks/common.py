@@ -145,11 +145,17 @@ def measured_line(benchmark):
                            command=f"python -m benchmarks{' --full' if FULL else ''} {benchmark}")
 
 
-def write_doc_table(doc, name, table, benchmark):
+def write_doc_table(doc, name, table, benchmark, full_only=False):
     """Write ``table`` (Markdown) between ``<!-- begin NAME -->`` and ``<!-- end NAME -->`` in
     ``doc`` (a path under the checkout, e.g. ``docs/solvers.md``), with the :func:`measured_line`
     of ``benchmark`` under it. The markers stay where the doc's text puts them; a doc without
-    them is an error (tests/test_docs_measured.py checks the tables' scenes and keys)."""
+    them is an error (tests/test_docs_measured.py checks the tables' scenes and keys).
+
+    ``full_only``: the doc's table is the one ``--full`` measures (without it the benchmark
+    runs less of it, so the doc keeps what it has; bench-results/ has the lighter table)."""
+    if full_only and not FULL:
+        print(f"  {doc}: table {name} kept (`python -m benchmarks --full {benchmark}` writes it)")
+        return
     path = os.path.join(ROOT, doc)
     with open(path) as fh:
         text = fh.read()

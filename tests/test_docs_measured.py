@@ -129,6 +129,21 @@ def test_write_doc_table_replaces_only_its_block(tmp_path):
         write_doc_table(str(doc), "u", "| a |", "methods")
 
 
+def test_a_table_only_full_measures_is_kept_by_a_quick_run(tmp_path, monkeypatch):
+    """``full_only``: without --full the doc keeps its table (the one --full wrote); with it,
+    the table is written and its line names ``--full``."""
+    from benchmarks import common
+
+    doc = tmp_path / "doc.md"
+    doc.write_text("<!-- begin t -->\nold\n<!-- end t -->\n")
+    monkeypatch.setattr(common, "FULL", False)
+    write_doc_table(str(doc), "t", "| a |\n| --- |\n| 1 |\n", "sweep", full_only=True)
+    assert doc.read_text() == "<!-- begin t -->\nold\n<!-- end t -->\n"
+    monkeypatch.setattr(common, "FULL", True)
+    write_doc_table(str(doc), "t", "| a |\n| --- |\n| 1 |\n", "sweep", full_only=True)
+    assert LINE.search(doc.read_text()).group(0).endswith("`python -m benchmarks --full sweep`")
+
+
 # ---------------------------------------------------------------------------- hand-typed figures
 #
 # A measured figure is a number in a unit of the machine's work (a time, a rate, a size, a
