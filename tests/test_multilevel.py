@@ -9,14 +9,14 @@ import scipy.sparse as sps
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from clothtool.sim.linalg.aggregation import aggregate, coarsen
+from clothtool.sim.linalg.aggregation import aggregate, coarsen, transposes
 from clothtool.sim.linalg.blocks import BlockMatrix, BlockPattern, ConstraintFilter
 from clothtool.sim.linalg.galerkin import galerkin
 from clothtool.sim.linalg.modes import (M, coarse_prolongator, coarser_sums, fine_prolongator,
                                         node_frames, node_sums)
 from clothtool.sim.linalg.multilevel import ModeMultigrid
-from clothtool.sim.linalg.relaxation import (block_inverses, forward_from_zero3, gauss_seidel,
-                                             gauss_seidel3)
+from clothtool.sim.linalg.relaxation import (block_inverses, forward_from_zero,
+                                             forward_from_zero3, gauss_seidel, gauss_seidel3)
 from clothtool.sim.model.mesh import grid_mesh
 from clothtool.sim.model.config import GridSpec
 
@@ -152,7 +152,8 @@ def test_galerkin_products_equal_the_sparse_triple_product(pinned):
     q = np.zeros((len(x), 3, M))
     fine_prolongator(x, ~skip, agg, *geometry, q)
     out = np.zeros((len(levels[1][1]), M, M))
-    galerkin(pattern.row_ptr, pattern.col, blocks, skip, slot_map, q, out)
+    galerkin(pattern.row_ptr, pattern.col, blocks, skip, slot_map, transposes(*levels[1]), q,
+             out)
     p = prolongator_matrix(q, agg, nc).toarray()
     s = np.diag(np.repeat(~skip, 3).astype(float))
     expected = p.T @ s @ a @ s @ p
@@ -166,7 +167,8 @@ def test_galerkin_products_equal_the_sparse_triple_product(pinned):
     tr[:, 3:, :3] = 0.0
     a1, cblocks = random_block_matrix(levels[1][0], levels[1][1], M, rng)
     cout = np.zeros((len(levels[2][1]), M, M))
-    galerkin(levels[1][0], levels[1][1], cblocks, np.zeros(nc, bool), cslot, tr, cout)
+    galerkin(levels[1][0], levels[1][1], cblocks, np.zeros(nc, bool), cslot,
+             transposes(*levels[2]), tr, cout)
     t = prolongator_matrix(tr, cagg, cn).toarray()
     expected = t.T @ a1 @ t
     got = sps.bsr_matrix((cout, levels[2][1], levels[2][0]), shape=expected.shape).toarray()
@@ -193,11 +195,11 @@ def test_sweeps_are_block_gauss_seidel(b):
         got = x0.copy()
         sweep(pattern.row_ptr, pattern.col, pattern.diag, blocks, inv, r, got, forward)
         np.testing.assert_allclose(got.ravel(), expected, rtol=1e-10, atol=1e-12)
-    if b == 3:
-        got, res = np.zeros((n, 3)), np.zeros((n, 3))
-        forward_from_zero3(pattern.row_ptr, pattern.col, pattern.diag, blocks, inv, r, got, res)
-        np.testing.assert_allclose(got.ravel(), np.linalg.solve(lower, r.ravel()), rtol=1e-10)
-        np.testing.assert_allclose(res.ravel(), r.ravel() - a @ got.ravel(), atol=1e-10)
+    got, res = np.zeros((n, b)), np.zeros((n, b))
+    from_zero = forward_from_zero3 if b == 3 else forward_from_zero
+    from_zero(pattern.row_ptr, pattern.col, pattern.diag, blocks, inv, r, got, res)
+    np.testing.assert_allclose(got.ravel(), np.linalg.solve(lower, r.ravel()), rtol=1e-10)
+    np.testing.assert_allclose(res.ravel(), r.ravel() - a @ got.ravel(), atol=1e-10)
 
 
 def test_block_inverses_keep_to_the_supported_modes():

@@ -248,6 +248,9 @@ def test_a_method_refuses_a_feature_it_does_not_support():
         load_config(cfg)
     load_config({**cfg, "solver": {"method": "implicit"}})
     load_config({**cfg, "scene": {"colliders": [{"sphere": {}}]}})  # frictionless: projection
+    with pytest.raises(InputError, match=r"^config: solver.method: 'vbd' does not support "
+                                         r"solver.stiffness_continuation"):
+        load_config({**cfg, "scene": {}, "solver": {"method": "vbd", "stiffness_continuation": 2}})
 
 
 @pytest.mark.parametrize("method, solver", METHODS)

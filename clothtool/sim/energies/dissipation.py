@@ -186,6 +186,7 @@ class StrainDissipation:
     def __init__(self, model, membrane=None):
         self.faces, self.dr_inv, self.area = model.faces, model.dr_inv, model.area
         self.slots = model.tri_slots
+        self.membrane, self.h_eff = membrane, 1.0
         self.stretch = membrane.stretch if membrane is not None else np.zeros((0, 4))
         self.shear = membrane.shear if membrane is not None else np.zeros(0)
         self.damping = np.ascontiguousarray(model.strain_damping, dtype=np.float64)
@@ -208,6 +209,7 @@ class StrainDissipation:
     def begin(self, past, h_eff):
         """The step's ĥ and base strains Σ w_i m(x_i) over the (w_i, x_i) of ``past``
         (lengths ≥ 0)."""
+        self.h_eff = h_eff
         np.multiply(self.damping, 1.0 / h_eff, out=self.coef)
         np.multiply(self.bend, 1.0 / h_eff, out=self.bend_coef)
         self.base[:] = 0.0
@@ -223,6 +225,15 @@ class StrainDissipation:
             self.plate_base[:] = 0.0
             for weight, x in past:
                 self.plate_base += weight * x
+
+    def soften(self, factor):
+        """The triangles' Φ and the membrane assembled with it × ``factor`` (1 restores them
+        exactly; ``solver.stiffness_continuation``); bending's Φ as it is."""
+        np.multiply(self.damping, 1.0 / self.h_eff, out=self.coef)
+        if factor != 1.0:
+            self.coef *= factor
+        if self.membrane is not None:
+            self.membrane.soften(factor)
 
     def energy(self, x):
         total = strain_energy(x, self.faces, self.dr_inv, self.area, self.stretch, self.shear,

@@ -36,6 +36,11 @@ class FemElastic:
             total += term.energy(x)
         return total
 
+    def soften(self, factor):
+        """The terms' membrane stiffness × ``factor`` (1 restores it)."""
+        for term in self.terms:
+            term.soften(factor)
+
     def assemble(self, x, grad, values):
         """W(x); overwrites grad (N, 3) with ∇W and values with the projected Hessian K."""
         grad[:] = 0.0

@@ -41,6 +41,9 @@ class Term:
     def bind(self, pattern):
         pass
 
+    def soften(self, factor):
+        """Only the membrane's stiffness is scaled by ``solver.stiffness_continuation``."""
+
     def constant(self, pattern, values):
         pass
 
@@ -53,6 +56,13 @@ class Membrane(Term):
         self.faces, self.dr_inv, self.area = faces, dr_inv, area
         self.stretch = np.ascontiguousarray(stretch, dtype=np.float64)
         self.shear = np.ascontiguousarray(shear, dtype=np.float64)
+        self.stiffness = (self.stretch[:, :2].copy(), self.shear.copy())
+
+    def soften(self, factor):
+        """Stretch and shear stiffnesses × ``factor`` in place (1 restores them exactly;
+        ``solver.stiffness_continuation``)."""
+        np.multiply(self.stiffness[0], factor, out=self.stretch[:, :2])
+        np.multiply(self.stiffness[1], factor, out=self.shear)
 
     def bind(self, pattern):
         self.slots = pattern.slots(self.faces)

@@ -69,6 +69,14 @@ def coarse_pattern(row_ptr, col, agg, nc):
             (ukey % nc).astype(np.int64), np.searchsorted(ukey, key).astype(np.int64))
 
 
+def transposes(row_ptr, col):
+    """The slot of each block's transpose in a symmetric pattern: block (i, j) → slot of
+    (j, i)."""
+    n = len(row_ptr) - 1
+    rows = np.repeat(np.arange(n), np.diff(row_ptr))
+    return np.searchsorted(rows * n + col, col * n + rows).astype(np.int64)
+
+
 def coarsen(row_ptr, col, graph, coarsest):
     """Levels down to at most ``coarsest`` nodes: the first aggregation follows ``graph`` =
     (row_ptr, col) (the triangle adjacency: bending widens the matrix pattern, which would make

@@ -39,27 +39,56 @@ def _slot(slots, used, target, acc):
 
 
 @njit(cache=True, inline="always")
-def _add_product(a, p, out):
-    """out += a p for a block p (b × M) that starts with the identity, p[:, :3] = [I₃; 0]."""
-    for r in range(a.shape[0]):
+def _right(a, p, out, b):
+    """out += a p for a b×b block a and a block p (b × M) that starts with the identity,
+    p[:, :3] = [I₃; 0] (b a constant of the caller's branch, so the loops unroll)."""
+    for r in range(b):
         for c in range(3):
             out[r, c] += a[r, c]
         for c in range(3, M):
             v = 0.0
-            for q in range(a.shape[1]):
+            for q in range(b):
                 v += a[r, q] * p[q, c]
             out[r, c] += v
 
 
+@njit(cache=True, inline="always")
+def _left(p, acc, out, b):
+    """out += pᵀ acc for a block p (b × M) that starts with the identity and acc (b × M)."""
+    for r in range(3):
+        for c in range(M):
+            out[r, c] += acc[r, c]
+    for r in range(3, M):
+        for c in range(M):
+            v = 0.0
+            for q in range(b):
+                v += p[q, r] * acc[q, c]
+            out[r, c] += v
+
+
 @njit(cache=True)
-def galerkin(row_ptr, col, values, skip, slot_map, p, out):
+def galerkin(row_ptr, col, values, skip, slot_map, mirror, p, out):
     """out = Pᵀ A P: ``values`` (nnzb, b, b) the level's blocks, ``p`` (n, b, M) its
     prolongator's, each starting with the identity (p[i][:, :3] = [I₃; 0]: the fine
     P_i = [I₃ | C_i], b = 3, and the coarse T_a = [[I₃, X_a], [0, Y_a]], b = M); rows and
     columns of nodes with ``skip`` set (pinned vertices, nodes without a free vertex) are left
-    out."""
+    out. A_c is symmetric: only its blocks on and above the diagonal are summed, those below are
+    their transposes (``mirror``: the slot of each coarse block's transpose,
+    :func:`~clothtool.sim.linalg.aggregation.transposes`)."""
+    if values.shape[1] == 3:
+        _galerkin(row_ptr, col, values, skip, slot_map, mirror, p, out, 3)
+    else:
+        _galerkin(row_ptr, col, values, skip, slot_map, mirror, p, out, M)
+    for t in range(out.shape[0]):
+        if mirror[t] > t:
+            out[mirror[t]] = out[t].T
+
+
+@njit(cache=True, inline="always")
+def _galerkin(row_ptr, col, values, skip, slot_map, mirror, p, out, b):
+    """:func:`galerkin`'s blocks on and above the diagonal, for blocks of the constant size b."""
     out[:, :, :] = 0.0
-    acc = np.zeros((SLOTS_PER_ROW, values.shape[1], M))
+    acc = np.zeros((SLOTS_PER_ROW, b, M))
     slots = np.empty(SLOTS_PER_ROW, np.int64)
     for i in range(row_ptr.shape[0] - 1):
         if skip[i]:
@@ -67,12 +96,12 @@ def galerkin(row_ptr, col, values, skip, slot_map, p, out):
         used = 0
         for s in range(row_ptr[i], row_ptr[i + 1]):  # acc[slot] += A_ij P_j
             j = col[s]
-            if skip[j]:
+            if skip[j] or mirror[slot_map[s]] < slot_map[s]:
                 continue
             k, used = _slot(slots, used, slot_map[s], acc)
-            _add_product(values[s], p[j], acc[k])
-        for k in range(used):  # out[slot] += P_iᵀ acc[slot], as its transpose
-            _add_product(acc[k].T, p[i], out[slots[k]].T)
+            _right(values[s], p[j], acc[k], b)
+        for k in range(used):  # out[slot] += P_iᵀ acc[slot]
+            _left(p[i], acc[k], out[slots[k]], b)
 
 
 def pinned_mask(kind, constrained):

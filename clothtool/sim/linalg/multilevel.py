@@ -27,14 +27,14 @@ from one step to the next, so a resumed run builds the same ones as an uninterru
 import numpy as np
 from numba import njit
 
-from clothtool.sim.linalg.aggregation import coarsen
+from clothtool.sim.linalg.aggregation import coarsen, transposes
 from clothtool.sim.linalg.blocks import BlockPattern
 from clothtool.sim.linalg.galerkin import galerkin, pinned_mask
 from clothtool.sim.linalg.modes import (M, coarse_prolongator, coarser_sums, fine_prolongator,
                                         node_frames, node_sums)
 from clothtool.sim.linalg.relaxation import (block_inverses, block_jacobi, cholesky,
-                                             cholesky_solve, forward_from_zero3, gauss_seidel,
-                                             gauss_seidel3, residual)
+                                             cholesky_solve, forward_from_zero,
+                                             forward_from_zero3, gauss_seidel, gauss_seidel3)
 
 COARSEST = 16  # nodes at which the hierarchy stops (a dense Cholesky of ≤ 8·16 unknowns)
 # a vertex whose diagonal block exceeds this many times its inertia floor (a contact barrier near
@@ -78,6 +78,7 @@ class ModeMultigrid:
         total = self.node_off[-1]
         self.cagg = np.concatenate([a for a, _ in maps[1:]] + [np.zeros(sizes[-1], np.int64)])
         self.cslot = [m for _, m in maps[1:]]
+        self.mirror = [transposes(rp, c) for rp, c in coarse]
         self.q0 = np.zeros((pattern.n, 3, M))  # the modes of every free vertex (update)
         self.q = np.zeros((pattern.n, 3, M))  # those the coarse levels take this solve (setup)
         self.dinv0 = np.zeros((pattern.n, 3, 3))
@@ -129,12 +130,12 @@ class ModeMultigrid:
                      self.dinv0)
         self.q[:] = self.q0
         self.q[held] = 0.0
-        galerkin(matrix.row_ptr, matrix.col, matrix.values, held, self.slot0, self.q,
-                 self._level(0)[2])
+        galerkin(matrix.row_ptr, matrix.col, matrix.values, held, self.slot0, self.mirror[0],
+                 self.q, self._level(0)[2])
         for c in range(len(self.sizes)):
             level = self._level(c)
             if c > 0:
-                galerkin(row_ptr, col, values, skip, slot_map, p, level[2])
+                galerkin(row_ptr, col, values, skip, slot_map, self.mirror[c], p, level[2])
             if c + 1 < len(self.sizes):
                 block_inverses(level[2], self.cdiag[c], self.skip[c], self.dinv[level[3]])
                 row_ptr, col, values = level[:3]
@@ -183,6 +184,34 @@ def _prolong(p, agg, src, dst):
         _transfer(p[i], src[agg[i]], dst[i], False)
 
 
+@njit(cache=True)
+def _restrict3(q, agg, src, dst):
+    """:func:`_restrict` from the fine level (3×M blocks), unrolled."""
+    dst[:, :] = 0.0
+    for i in range(src.shape[0]):
+        a = agg[i]
+        s0, s1, s2 = src[i, 0], src[i, 1], src[i, 2]
+        b = q[i]
+        for c in range(M):
+            dst[a, c] += b[0, c] * s0 + b[1, c] * s1 + b[2, c] * s2
+
+
+@njit(cache=True)
+def _prolong3(q, agg, src, dst):
+    """:func:`_prolong` to the fine level (3×M blocks), unrolled."""
+    for i in range(dst.shape[0]):
+        s = src[agg[i]]
+        b = q[i]
+        v0 = v1 = v2 = 0.0
+        for c in range(M):
+            v0 += b[0, c] * s[c]
+            v1 += b[1, c] * s[c]
+            v2 += b[2, c] * s[c]
+        dst[i, 0] += v0
+        dst[i, 1] += v1
+        dst[i, 2] += v2
+
+
 @njit(cache=True, inline="always")
 def _transfer(block, src, dst, transpose):
     """dst += block src, or blockᵀ src with ``transpose`` (one node's share of P or Pᵀ)."""
@@ -211,9 +240,8 @@ def _coarse_vcycle(mg, r, z, t):
         lo, hi = node_off[c], node_off[c + 1]
         rp = c_row_ptr[row_off[c]:row_off[c] + hi - lo + 1]
         cl, vals = c_col[block_off[c]:block_off[c + 1]], c_values[block_off[c]:block_off[c + 1]]
-        z[lo:hi] = 0.0
-        gauss_seidel(rp, cl, c_diag[lo:hi], vals, c_dinv[lo:hi], r[lo:hi], z[lo:hi], True)
-        residual(rp, cl, vals, r[lo:hi], z[lo:hi], t[lo:hi])
+        forward_from_zero(rp, cl, c_diag[lo:hi], vals, c_dinv[lo:hi], r[lo:hi], z[lo:hi],
+                          t[lo:hi])
         _restrict(transfer[lo:hi], c_agg[lo:hi], t[lo:hi], r[hi:node_off[c + 2]])
     last = levels - 1
     cholesky_solve(coarsest, r[node_off[last]:node_off[last + 1]],
@@ -235,7 +263,7 @@ def mode_cycle(rhs, out, row_ptr, col, values, mg):
     r, z, t, t0, diag = mg[14:]
     forward_from_zero3(row_ptr, col, diag, values, dinv0, rhs, out, t0)
     lo, hi = node_off[0], node_off[1]
-    _restrict(q0, agg0, t0, r[lo:hi])
+    _restrict3(q0, agg0, t0, r[lo:hi])
     _coarse_vcycle(mg, r, z, t)
-    _prolong(q0, agg0, z[lo:hi], out)
+    _prolong3(q0, agg0, z[lo:hi], out)
     gauss_seidel3(row_ptr, col, diag, values, dinv0, rhs, out, False)

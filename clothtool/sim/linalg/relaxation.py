@@ -23,25 +23,27 @@ PIVOT = 1e-12  # smallest Cholesky pivot relative to its diagonal entry
 
 
 @njit(cache=True, inline="always")
-def subtract_products(lo, hi, col, values, x, t):
-    """t −= Σ A_s x_col[s] over the blocks lo ≤ s < hi of a row (blocks of any size)."""
-    b = t.shape[0]
+def _subtract_products(lo, hi, col, values, x, t):
+    """t −= Σ A_s x_col[s] over the M×M blocks lo ≤ s < hi of a row (a coarse level; M a
+    constant, so the loops unroll)."""
     for s in range(lo, hi):
         a = values[s]
         j = col[s]
-        for p in range(b):
+        for p in range(M):
             v = 0.0
-            for q in range(b):
+            for q in range(M):
                 v += a[p, q] * x[j, q]
             t[p] -= v
 
 
-@njit(cache=True)
-def residual(row_ptr, col, values, r, x, out):
-    """out = r − A x (blocks of any size)."""
-    for i in range(x.shape[0]):
-        out[i] = r[i]
-        subtract_products(row_ptr[i], row_ptr[i + 1], col, values, x, out[i])
+@njit(cache=True, inline="always")
+def _solve_node(d, t, x, i):
+    """x[i] = D_i⁻¹ t (an M×M block)."""
+    for p in range(M):
+        v = 0.0
+        for q in range(M):
+            v += d[p, q] * t[q]
+        x[i, p] = v
 
 
 @njit(cache=True)
@@ -53,15 +55,29 @@ def gauss_seidel(row_ptr, col, diag, values, diag_inv, r, x, forward):
     t = np.empty(M)
     for step in range(n):
         i = step if forward else n - 1 - step
-        t[:] = r[i]
-        subtract_products(row_ptr[i], diag[i], col, values, x, t)
-        subtract_products(diag[i] + 1, row_ptr[i + 1], col, values, x, t)
-        d = diag_inv[i]
         for p in range(M):
-            v = 0.0
-            for q in range(M):
-                v += d[p, q] * t[q]
-            x[i, p] = v
+            t[p] = r[i, p]
+        _subtract_products(row_ptr[i], diag[i], col, values, x, t)
+        _subtract_products(diag[i] + 1, row_ptr[i + 1], col, values, x, t)
+        _solve_node(diag_inv[i], t, x, i)
+
+
+@njit(cache=True)
+def forward_from_zero(row_ptr, col, diag, values, diag_inv, r, x, res):
+    """:func:`forward_from_zero3` for a coarse level (M×M blocks): a forward sweep from x = 0
+    and res = r − A x, in one pass over the blocks."""
+    n = x.shape[0]
+    t = np.empty(M)
+    for i in range(n):
+        for p in range(M):
+            t[p] = r[i, p]
+        _subtract_products(row_ptr[i], diag[i], col, values, x, t)
+        _solve_node(diag_inv[i], t, x, i)
+        for p in range(M):
+            res[i, p] = t[p]
+        _subtract_products(diag[i], diag[i] + 1, col, values, x, res[i])
+    for i in range(n):
+        _subtract_products(diag[i] + 1, row_ptr[i + 1], col, values, x, res[i])
 
 
 @njit(cache=True)

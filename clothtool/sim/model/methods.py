@@ -41,8 +41,9 @@ SEAMS = "seams"  # mesh.seams: the stitch term and the weld (clothtool.sim.model
 ATTACH = "attach"  # scene.attach: vertices carried by a collider's surface (moving pins)
 PANEL_DAMPING = "per-panel damping"  # materials.NAME.damping other than material.damping
 STRAIN_DAMPING = "strain damping"  # material.damping_model: strain (clothtool.sim.energies.dissipation)
+CONTINUATION = "stiffness continuation"  # solver.stiffness_continuation > 0 (clothtool.sim.solve.newton)
 FEATURES = (FRICTION, CONTACT, MOVING_PINS, BDF2, MATERIALS, SEAMS, ATTACH, PANEL_DAMPING,
-            STRAIN_DAMPING)
+            STRAIN_DAMPING, CONTINUATION)
 
 
 @dataclass(frozen=True)
@@ -60,7 +61,7 @@ class Method:
 METHODS = {m.name: m for m in (
     Method("implicit", "clothtool.sim.solvers.implicit:ImplicitEuler",
            frozenset({FRICTION, CONTACT, MOVING_PINS, BDF2, MATERIALS, SEAMS, ATTACH,
-                      PANEL_DAMPING, STRAIN_DAMPING}),
+                      PANEL_DAMPING, STRAIN_DAMPING, CONTINUATION}),
            "finite-element cloth, BDF2 or backward Euler, Newton + filtered PCG"),
     Method("mass-spring", "clothtool.sim.solvers.mass_spring:MassSpringImplicit",
            frozenset({BDF2}), "spring network, BDF2 or backward Euler, Newton + PCG"),
@@ -107,6 +108,8 @@ def requested_features(config, given=()):
         out.append((SEAMS, "mesh.seams"))
     if config.scene.attach:
         out.append((ATTACH, "scene.attach"))
+    if config.solver.stiffness_continuation:
+        out.append((CONTINUATION, "solver.stiffness_continuation"))
     return out
 
 

@@ -26,6 +26,7 @@ class StepReport:
     """What one step (or the steps of a frame, summed) cost, each count under its own name."""
 
     newton_iterations: int = 0  # Newton steps (implicit, mass-spring)
+    capped: int = 0  # Newton solves stopped by solver.newton_iterations, not converged
     cg_iterations: int = 0  # PCG iterations, summed over the Newton steps
     sweeps: int = 0  # constraint sweeps (pbd, xpbd) or local–global iterations (projective)
     substeps: int = 0  # internal steps (explicit)
@@ -37,6 +38,7 @@ class StepReport:
         """Accumulate another report (counts add, the residual is the largest, the contact
         figures are the later report's)."""
         self.newton_iterations += other.newton_iterations
+        self.capped += other.capped
         self.cg_iterations += other.cg_iterations
         self.sweeps += other.sweeps
         self.substeps += other.substeps

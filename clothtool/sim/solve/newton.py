@@ -45,6 +45,15 @@ search left of the previous step. A single Newton step (``newton_iterations: 1``
 from x_n instead, with the PCG guess h v_n: that is exactly Baraff–Witkin's linearised step
 (M − h ∂f/∂v − h² ∂f/∂x) Δv = h (f + h ∂f/∂x v_n) for backward Euler.
 
+With ``solver.stiffness_continuation`` n > 0 each minimisation is first solved with the
+membrane's stretch and shear (and, with strain damping, the triangles' Φ) 10ⁿ, …, 10× softer,
+each solve starting from the last's solution, then as it is (a homotopy in the stiffness;
+Nocedal & Wright 2006, "Numerical Optimization", §11.3). Near-inextensible cloth at large
+steps swings through turns whose linearisation stretches its fibres at second order, so Newton
+on it alone takes steps of millimetres (a 1e6 N/m sheet at h = 1 s crawls to its cap, 0.99 m
+short of its converged swing); a softer membrane swings there in a few steps, and the next
+one only tightens it.
+
 Vertices held by pins are constrained in the solve through the filter.
 
 With contact (colliders or self-collision, :mod:`clothtool.sim.solve.contact`, for the methods
@@ -89,6 +98,12 @@ SDIRK_GAMMA = 1.0 - np.sqrt(0.5)  # Alexander's SDIRK2: L-stable, exact for free
 # 2(1 − γ)/γ ≈ 4.8: it is solved to a tenth of newton_tolerance (the 1e7 N/m plate at one step
 # per frame: 0.160 m from its tightly solved step at the full tolerance, 0.118 m at a tenth)
 SDIRK_FIRST_TOL = 0.1
+# solver.stiffness_continuation: each level's membrane this much softer than the next one's.
+# 12×12 sheet of 1e6 N/m hanging from two corners, h = 1 s, 6 steps: Newton alone stops at its
+# cap in every solve (0.99 m short of the converged swing); 4 levels of 10 converge every
+# solve, 5 levels of 10 every solve at 1e7 N/m too; levels of 30 or 100 left the first steps'
+# stiffer solves at the cap
+CONTINUATION_RATIO = 10.0
 
 
 def eisenstat_walker(g_norm, g_prev, previous, floor):
@@ -270,19 +285,37 @@ class NewtonIntegrator(Integrator):
     def minimise(self, stage, report, tol=None):
         """Newton's minimisation of the stage's incremental potential Σ_k E_k (see the
         module docstring) to ``tol`` (default ``solver.newton_tolerance``): its solution x;
-        the counts go into ``report``."""
-        solver, terms, matrix = self.solver, self.terms, self.matrix
-        for term in terms:
+        the counts go into ``report``. With ``solver.stiffness_continuation`` n, the membrane
+        10ⁿ, …, 10× softer first, each solve from the last's solution."""
+        for term in self.terms:
             term.begin(stage)
-        x, dx, h_eff = stage.start, stage.guess, stage.h_eff
+        x, guess = stage.start, stage.guess
+        try:
+            for level in range(self.solver.stiffness_continuation, 0, -1):
+                for term in self.terms:
+                    term.soften(CONTINUATION_RATIO ** -level)
+                x = self._newton(stage, x, guess, report, tol)
+                guess = np.zeros_like(guess)
+        finally:
+            if self.solver.stiffness_continuation:
+                for term in self.terms:
+                    term.soften(1.0)
+        return self._newton(stage, x, guess, report, tol)
+
+    def _newton(self, stage, x, dx, report, tol):
+        """Newton from x (its first PCG from the guess dx) on the terms begun on ``stage``."""
+        solver, terms, matrix = self.solver, self.terms, self.matrix
+        h_eff = stage.h_eff
         constraints = ConstraintFilter(self.model.kind, self.model.has_pins)
         self.preconditioner.update(x, constraints)
         tol, grad = solver.newton_tolerance if tol is None else tol, self._grad
         forcing, g_prev, step, cut = solver.tolerance, 0.0, 1.0, False
         line_search = solver.line_search or any(t.needs_line_search for t in terms)
         # prescribed motion still short of its goal gets three times as many more steps
+        converged = False
         for it in range(4 * solver.newton_iterations):
             if it >= solver.newton_iterations and self._behind(x) <= REACHED:
+                converged = False
                 break
             energy = sum(term.assemble(x, grad, matrix) for term in terms)
             free_grad = _filtered(grad, constraints.kind, constraints.active)
@@ -343,6 +376,9 @@ class NewtonIntegrator(Integrator):
             if (converged and self._behind(x) <= REACHED
                     and all(term.relag(x) <= tol for term in terms)):
                 break
+        else:
+            converged = False
+        report.capped += not converged
         behind = self._behind(x)
         if behind > REACHED:
             raise NumericalError(

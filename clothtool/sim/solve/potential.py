@@ -13,6 +13,8 @@ kind a term is (Li et al. 2020, "Incremental Potential Contact", Algorithm 1). A
 - :meth:`~Term.max_step` is its largest safe fraction of a step (CCD; 1 without);
 - :meth:`~Term.prescribe` moves what the stage prescribes (moving pins, animated
   colliders) with the Newton step, :meth:`~Term.behind` says how far that still is;
+- :meth:`~Term.soften` scales its membrane stiffness for ``solver.stiffness_continuation``
+  (1 restores it);
 - :meth:`~Term.advance` follows the accepted step, :meth:`~Term.settled` and
   :meth:`~Term.relag` are a converged step's extra tests (lagged friction),
   :meth:`~Term.finish` writes its figures into the step's report.
@@ -72,6 +74,9 @@ class Term:
     def prescribe(self, x, dx, rhs):
         pass
 
+    def soften(self, factor):
+        pass
+
     def advance(self, x, dx, step):
         pass
 
@@ -100,6 +105,9 @@ class Elastic(Term):
 
     def assemble(self, x, grad, matrix):
         return self.elastic.assemble(x, grad, matrix.values)
+
+    def soften(self, factor):
+        self.elastic.soften(factor)
 
 
 class Inertia(Term):
@@ -202,6 +210,9 @@ class Dissipation(Term):
 
     def assemble(self, x, grad, matrix):
         return self.potential.assemble(x, grad, matrix.values)
+
+    def soften(self, factor):
+        self.potential.soften(factor)
 
 
 class MovingPins(Term):
