@@ -13,8 +13,8 @@ Either way the residual is a vector per point, so its length is the distance the
 gives and least squares sees a smooth function of the simulated positions (an unsigned
 distance has a kink at 0). Frame 0 is not compared: it is the config's initial state in every
 simulation. A capture that starts slightly off it is first moved rigidly onto it
-(:func:`register`); what is left at frame 0 (a capture that does not start from the config's
-shape) is reported, not fitted.
+(:func:`register`) when the rigid motion stands out of frame 0's scatter; what is left at
+frame 0 (a capture that does not start from the config's shape) is reported, not fitted.
 """
 
 import math
@@ -27,6 +27,7 @@ from clothtool.errors import InputError
 COMPARISONS = ("auto", "vertex", "surface")
 NEAREST = 8  # candidate triangles per point before the exactness check
 ICP_ITERATIONS = 30
+RIGID_ALPHA = 1e-3  # a rigid motion fitted to noise alone stands out this rarely (F-test)
 
 
 @dataclass
@@ -100,13 +101,18 @@ def read_capture(capture, count, positions, faces, compare="auto"):
 
 def register(capture, positions, faces, move=True, iterations=ICP_ITERATIONS):
     """Move every frame of ``capture`` by the rigid motion that brings its frame 0 nearest the
-    config's initial mesh (``positions``, ``faces``), in place: a capture that starts slightly
-    off (a registration error, another origin or up axis) is compared as if it had not.
+    config's initial mesh (``positions``, ``faces``), in place, when that motion stands out of
+    frame 0's scatter: a capture that starts slightly off (a registration error, another origin
+    or up axis) is compared as if it had not.
     Vertex for vertex, the motion is Kabsch's (least squares over the vertices); surface to
     surface, iterative closest points (Besl & McKay 1992): Kabsch onto the closest points of the
     initial surface, ``iterations`` times or until it stops moving; ``move=False`` only
-    measures. Returns (frame 0's RMS distance before, after, translation length (m), rotation
-    angle (rad))."""
+    measures. The motion is fitted to frame 0 alone, so its error from that frame's noise
+    (≈ noise/√N) would move every frame alike, a systematic difference the fit's ± does not
+    hold; it is applied only when it explains more of frame 0 than six parameters fitted to
+    noise do (:func:`rigid_motion_stands_out`).
+    Returns (frame 0's RMS distance before, after, translation length (m), rotation
+    angle (rad)); a motion not applied is (before, before, 0, 0)."""
     x0 = capture.frames[0]
 
     def distance(x):
@@ -123,9 +129,32 @@ def register(capture, positions, faces, move=True, iterations=ICP_ITERATIONS):
         rotation, shift = r @ rotation, r @ shift + t
         if np.abs(r - np.eye(3)).max() < 1e-12 and np.abs(t).max() < 1e-12:
             break
+    # vertex for vertex a point gives 3 coordinates, surface to surface about 1 (its offset
+    # along the normal)
+    coordinates = len(x0) * (3 if capture.mode == "vertex" else 1)
+    if not rigid_motion_stands_out(before, distance(x0 @ rotation.T + shift), len(x0),
+                                   coordinates):
+        return before, before, 0.0, 0.0
     capture.frames = capture.frames @ rotation.T + shift
     angle = math.acos(min(max((np.trace(rotation) - 1.0) / 2.0, -1.0), 1.0))
     return before, distance(capture.frames[0]), float(np.linalg.norm(shift)), angle
+
+
+def rigid_motion_stands_out(before, after, points, coordinates, alpha=RIGID_ALPHA):
+    """Whether a rigid motion (6 parameters) that takes frame 0's RMS distance over ``points``
+    from ``before`` to ``after`` is more than a fit to its noise: Fisher's F-test of the
+    nested least-squares models, F = (S_before − S_after)/6 / (S_after/(m − 6)),
+    S = points·RMS², m = ``coordinates``, which noise alone (independent, of equal variance)
+    exceeds with probability ``alpha``. A noiseless frame stands out by any motion."""
+    from scipy.stats import f as fisher
+
+    gained, left = points * (before ** 2 - after ** 2), points * after ** 2
+    if gained <= 0.0:
+        return False
+    if left == 0.0:
+        return True
+    return coordinates > 6 and gained / 6.0 / (left / (coordinates - 6)) > fisher.ppf(1.0 - alpha, 6,
+                                                                    coordinates - 6)
 
 
 def kabsch(x, y):

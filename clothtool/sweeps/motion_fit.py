@@ -392,9 +392,11 @@ class _Problem:
                 f"from {len(c.frames) - 1} frames of {c.frames.shape[1]} captured vertices, "
                 f"compared {how}")
         line += f"; frame 0 is {1000 * self.offset0:.3g} mm RMS from the config's initial state"
-        if self.register and self.offset0 > 1e-9:
+        if self.shift > 0.0 or self.angle > 0.0:
             line += (f", {1000 * self.left0:.3g} mm once moved rigidly onto it (by "
                      f"{1000 * self.shift:.3g} mm and {math.degrees(self.angle):.3g}°)")
+        elif self.register and self.offset0 > 1e-9:
+            line += ", not moved: no rigid motion stands out of its scatter"
         return line
 
     def record(self):
