@@ -93,21 +93,26 @@ class Term:
         pass
 
 
-class Elastic(Term):
-    """W(x), the method's elastic energy (:mod:`clothtool.sim.energies.energy`); it starts
-    the sums: its assembly overwrites grad and the matrix."""
+class Wrapped(Term):
+    """A term whose energy, assembly (into the matrix's values) and softening are those of
+    the energy object it holds."""
 
-    def __init__(self, elastic):
-        self.elastic = elastic
+    def __init__(self, potential):
+        self.potential = potential
 
     def energy(self, x):
-        return self.elastic.energy(x)
+        return self.potential.energy(x)
 
     def assemble(self, x, grad, matrix):
-        return self.elastic.assemble(x, grad, matrix.values)
+        return self.potential.assemble(x, grad, matrix.values)
 
     def soften(self, factor):
-        self.elastic.soften(factor)
+        self.potential.soften(factor)
+
+
+class Elastic(Wrapped):
+    """W(x), the method's elastic energy (:mod:`clothtool.sim.energies.energy`); it starts
+    the sums: its assembly overwrites grad and the matrix."""
 
 
 class Inertia(Term):
@@ -195,24 +200,12 @@ class RayleighDamping(Term):
             self._damped += step * self._line
 
 
-class Dissipation(Term):
+class Dissipation(Wrapped):
     """A dissipation potential of the strain change over the stage
     (:mod:`clothtool.sim.energies.dissipation`), its rates measured from the stage's past."""
 
-    def __init__(self, potential):
-        self.potential = potential
-
     def begin(self, stage):
         self.potential.begin(stage.past, stage.h_eff)
-
-    def energy(self, x):
-        return self.potential.energy(x)
-
-    def assemble(self, x, grad, matrix):
-        return self.potential.assemble(x, grad, matrix.values)
-
-    def soften(self, factor):
-        self.potential.soften(factor)
 
 
 class MovingPins(Term):
