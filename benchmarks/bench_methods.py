@@ -24,18 +24,17 @@ The scenes, 0.5 s at 30 fps (15 frames):
   0.01 s) at 16×16 instead of 32×32;
 - ``drape``: a free 1 m sheet, 16×16, undamped, falling on a sphere (r = 0.25 m).
 
-The reference of each scene is the implicit method with BDF2 at 128 steps per frame,
-Newton and PCG solved tightly (the same ODE as the default's, damping included); its own
-convergence is its distance to the same at 64 steps per frame. The two are most of the
-benchmark's time, so they are kept in the output folder
-(``methods_reference_<scene>_<key>.npz``, the key a hash of the scene's config and of the
-simulator's source) and recomputed only when either changes. The other methods solve
-other discretisations (springs, constraints) of the same cloth, so part of their error
-is their model's, which is the point of the comparison.
+The reference of each scene is the implicit method with BDF2 at 64 steps per frame
+(``--full``: 128), Newton and PCG solved tightly (the same ODE as the default's, damping
+included); under ``--full`` its own convergence is its distance to the same at half its steps.
+They are most of the benchmark's time, so they are kept, keyed by the scene's config and the
+simulator's source, and recomputed only when either changes: the default ones in the
+repository (benchmarks/references.py; ``--full`` rewrites them from its half-step runs),
+``--full``'s in the output folder (``methods_reference_<scene>_<key>.npz``).
+The other methods solve other discretisations (springs, constraints) of the same cloth, so
+part of their error is their model's, which is the point of the comparison.
 """
 
-import hashlib
-import json
 import math
 import pathlib
 import sys
@@ -45,6 +44,7 @@ import numpy as np
 import yaml
 
 from benchmarks.common import FULL, full_or, markdown_table, pyplot, write_csv, write_doc_table
+from benchmarks.references import key, stored
 from clothtool.sim.solvers.compare import run_in_memory
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
@@ -94,33 +94,54 @@ def scene(name, method="implicit", substeps=1, nx=None, frames=FRAMES, material=
 def error(run, ref):
     """Largest vertex distance (m) to the reference positions ``ref`` (frame → (N, 3)) over
     its frames; inf if the run stopped."""
+    return error_to(run.positions, ref)
+
+
+def error_to(positions, ref):
+    """Largest vertex distance (m) of ``positions`` (frame → (N, 3)) to ``ref`` over ``ref``'s
+    frames; inf where ``positions`` stops short."""
     worst = 0.0
     for frame, x_ref in ref.items():
-        if frame not in run.positions:
+        if frame not in positions:
             return math.inf
-        worst = max(worst, float(np.linalg.norm(run.positions[frame] - x_ref, axis=1).max()))
+        worst = max(worst, float(np.linalg.norm(positions[frame] - x_ref, axis=1).max()))
     return worst
 
 
-def _source_digest():
-    """sha256 of the simulator's source (every clothtool/*.py, in path order)."""
-    digest = hashlib.sha256()
-    for path in sorted((ROOT / "clothtool").rglob("*.py")):
-        digest.update(str(path.relative_to(ROOT)).encode())
-        digest.update(path.read_bytes())
-    return digest.digest()
+def newton_per_step(run, steps):
+    return run.newton_iterations / max(run.frames_done * steps, 1)
+
+
+def default_reference(name, steps):
+    """``name``'s reference at ``steps`` steps per frame (the default one at REF_STEPS, or
+    ``--full``'s half-step run): positions at CHECKPOINTS, Newton steps a step, seconds to
+    solve it; from benchmarks/references/ when it holds it."""
+    config = scene(name, "implicit", steps, **TIGHT)
+
+    def solve():
+        t0 = time.perf_counter()
+        run = run_in_memory(config, CHECKPOINTS, warmup=False)
+        return dict(positions=np.stack([run.positions[f] for f in CHECKPOINTS]),
+                    newton_per_step=newton_per_step(run, steps),
+                    seconds=time.perf_counter() - t0)
+
+    data, cached = stored(f"methods_{name}", [config, steps, CHECKPOINTS], solve)
+    return dict(positions=dict(zip(CHECKPOINTS, data["positions"])),
+                newton_per_step=float(data["newton_per_step"]), seconds=float(data["seconds"]),
+                distance_to_half_step_m=math.nan, cached="yes" if cached else "no")
 
 
 def reference(name, out_dir):
-    """The converged reference (BDF2, 128 steps per frame, solved tightly) as a dict:
-    ``positions`` (frame → (N, 3)), ``distance_to_half_step_m`` (to the same at 64 steps per
-    frame, its convergence; ``--full`` only, nan without: a third of the references' time),
-    ``newton_per_step``, ``seconds`` (to compute it) and ``cached``;
-    read from ``out_dir`` when a file with the same key is there, else computed and saved."""
+    """The converged reference (BDF2 at REF_STEPS steps per frame, solved tightly) as a dict:
+    ``positions`` (frame → (N, 3)), ``distance_to_half_step_m`` (to the same at half the steps,
+    its convergence; ``--full`` only, nan without: a third of the references' time),
+    ``newton_per_step``, ``seconds`` (to compute it) and ``cached``. The default one is
+    :func:`default_reference`; ``--full``'s is read from ``out_dir`` when a file with its key
+    is there, else computed with its half-step run (which rewrites the default one's file)."""
+    if not FULL:
+        return default_reference(name, REF_STEPS)
     config = scene(name, "implicit", REF_STEPS, **TIGHT)
-    key = hashlib.sha256(json.dumps([config, REF_STEPS, CHECKPOINTS], sort_keys=True).encode()
-                         + _source_digest()).hexdigest()[:16]
-    path = out_dir / f"methods_reference_{name}_{key}.npz"
+    path = out_dir / f"methods_reference_{name}_{key([config, REF_STEPS, CHECKPOINTS])}.npz"
     if path.exists():
         data = np.load(path)
         return dict(positions=dict(zip(CHECKPOINTS, data["positions"])),
@@ -129,11 +150,10 @@ def reference(name, out_dir):
                     seconds=float(data["seconds"]), cached="yes")
     t0 = time.perf_counter()
     fine = run_in_memory(config, CHECKPOINTS, warmup=False)
-    half = run_in_memory(scene(name, "implicit", REF_STEPS // 2, **TIGHT), CHECKPOINTS,
-                         warmup=False) if FULL else None
+    half = default_reference(name, REF_STEPS // 2)
     ref = dict(positions=fine.positions,
-               distance_to_half_step_m=error(half, fine.positions) if half else math.nan,
-               newton_per_step=fine.newton_iterations / max(fine.frames_done * REF_STEPS, 1),
+               distance_to_half_step_m=error_to(half["positions"], fine.positions),
+               newton_per_step=newton_per_step(fine, REF_STEPS),
                seconds=time.perf_counter() - t0, cached="no")
     for old in out_dir.glob(f"methods_reference_{name}_*.npz"):
         old.unlink()

@@ -16,6 +16,8 @@ Writes ``sim_speed.csv`` and ``sim_speed.md`` into OUT_DIR:
   integrator solved to convergence (the error of stopping Newton early and of the
   PCG tolerance) and against a fine-step reference (backward Euler, 4 substeps per
   frame, up to 3 Newton steps, PCG tolerance 1e-5);
+  The reference and converged runs are read from the repository when it holds them for
+  this simulator's source and scene (benchmarks/references.py); ``--full`` solves its own;
 - stability: the same scene at growing stretch stiffness and step size, with one
   Newton step, four, and the default; a run is stable when it finishes without a
   blow-up and its largest principal stretch stays below 1.5.
@@ -31,7 +33,8 @@ from pathlib import Path
 
 import numpy as np
 
-from benchmarks.common import full_or, write_doc_table
+from benchmarks.common import FULL, full_or, write_doc_table
+from benchmarks.references import stored
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENE = ROOT / "sample_data" / "hanging_sheet.yaml"
@@ -84,14 +87,25 @@ def _run(overrides, frames):
     return state.x, seconds, iterations, worst
 
 
+def _converged(slot, overrides, frames):
+    """The last positions of a reference run (the fine-step one, or one solved to convergence):
+    by default from benchmarks/references/ (``slot``) when it holds it, solved under
+    ``--full``."""
+    if FULL:
+        return _run(overrides, frames)[0]
+    config = [SCENE.read_text(), overrides, frames]
+    return stored(slot, config, lambda: {"x": _run(overrides, frames)[0]})[0]["x"]
+
+
 def speed_rows(sizes=SIZES, frames=FRAMES, variants=VARIANTS):
     _run({"mesh.grid.nx": 4, "mesh.grid.ny": 4}, 2)  # compile (or load the numba cache)
     _run({"mesh.grid.nx": 16, "mesh.grid.ny": 16}, 2)
     rows = []
     for n in sizes:
         grid = {"mesh.grid.nx": n, "mesh.grid.ny": n}
-        x_ref, *_ = _run({**grid, **REFERENCE}, frames)
-        x_conv = {name: _run({**grid, **CONVERGED, "solver.integrator": name}, frames)[0]
+        x_ref = _converged(f"sim_{n}_reference", {**grid, **REFERENCE}, frames)
+        x_conv = {name: _converged(f"sim_{n}_converged_{name}",
+                                   {**grid, **CONVERGED, "solver.integrator": name}, frames)
                   for name in ("euler", "bdf2")}
         for preconditioner, tol, setting, extra in variants:
             x, seconds, its, stretch = _run({**grid, "solver.preconditioner": preconditioner,
