@@ -14,7 +14,7 @@ I/O floor.
 - readers: one frame of that mesh in every format, ms per frame through clothtool's readers;
 - end to end: ``clothtool analyze`` of 50 legacy binary VTK frames (whole command, numba cache
   warm) against the I/O floor (tet_floor_io.py: read the vertex blocks, write the same
-  datasets), medians of interleaved runs; peak memory for 50 and 200 frames (the same frames
+  datasets), one run each (``--full``: medians of 3 interleaved runs); peak memory for 50 and 200 frames (the same frames
   linked four times).
 
 The kernel, end-to-end and memory tables are README.md's ``tet`` table, the readers' its
@@ -28,8 +28,8 @@ import statistics
 import numba
 import numpy as np
 
-from benchmarks.common import (PYTHON, clothtool_cmd, markdown_table, median_seconds, peak_rss_mb,
-                               run_timed, write_csv, write_doc_table)
+from benchmarks.common import (PYTHON, clothtool_cmd, full_or, markdown_table, median_seconds,
+                               peak_rss_mb, run_timed, write_csv, write_doc_table)
 from clothtool.analysis.tet import (DEGENERATE_TOL, TET_FIELDS, KernelPlan, rest_from_positions,
                                     tet_fields)
 
@@ -37,7 +37,7 @@ HERE = pathlib.Path(__file__).parent
 N = 32  # cubes per side: 6·32³ = 196 608 tetrahedra, 33³ = 35 937 vertices
 FRAMES = 50
 REPEAT = 7  # kernel timings
-RUNS = 3  # end-to-end runs of clothtool and of the floor, interleaved
+RUNS = full_or(3, 1)  # end-to-end runs of clothtool and of the floor, interleaved
 
 
 def tet_mesh(n=N):
