@@ -300,7 +300,7 @@ def run(out_dir):
         fh.write("\n### Readers, one frame\n\n")
         fh.write(markdown_table(readers, ["format", "ms_per_frame", "file_mb"]))
         fh.write(f"\n### End to end: {FRAMES} legacy binary VTK frames, {pairs} pairs\n\n"
-                 f"Medians of {RUNS} interleaved runs, whole commands, numba cache warm, dirty "
+                 f"Medians of {RUNS} interleaved run(s), whole commands, numba cache warm, dirty "
                  f"pages flushed before each; load average {os.getloadavg()[0]:.1f} at the end "
                  f"on {os.cpu_count()} cores.\n\n")
         fh.write(markdown_table(e2e, ecols))
