@@ -14,11 +14,11 @@ I/O floor.
 - readers: one frame of that mesh in every format, ms per frame through clothtool's readers;
 - end to end: ``clothtool analyze`` of 50 legacy binary VTK frames (whole command, numba cache
   warm) against the I/O floor (tet_floor_io.py: read the vertex blocks, write the same
-  datasets), one run each (``--full``: medians of 3 interleaved runs); peak memory for 50 and 200 frames (the same frames
-  linked four times).
+  datasets), one run each (``--full``: medians of 3 interleaved runs); under ``--full``, peak
+  memory for 50 and 200 frames (the same frames linked four times): five more analyses.
 
-The kernel, end-to-end and memory tables are README.md's ``tet`` table, the readers' its
-``tet-readers``.
+The kernel and end-to-end tables are README.md's ``tet`` table, the memory its ``tet-memory``
+(``--full`` alone writes it), the readers' its ``tet-readers``.
 """
 
 import os
@@ -28,7 +28,7 @@ import statistics
 import numba
 import numpy as np
 
-from benchmarks.common import (PYTHON, clothtool_cmd, full_or, markdown_table, median_seconds,
+from benchmarks.common import (FULL, PYTHON, clothtool_cmd, full_or, markdown_table, median_seconds,
                                peak_rss_mb, run_timed, write_csv, write_doc_table)
 from clothtool.analysis.tet import (DEGENERATE_TOL, TET_FIELDS, KernelPlan, rest_from_positions,
                                     tet_fields)
@@ -243,6 +243,20 @@ def reader_rows(work, x, tets):
     return rows
 
 
+def peak_memory(work, seq):
+    """Peak memory of ``analyze --fields stretch,volume_ratio,flags`` on the sequence and on
+    four times as many frames (the same ones linked in turn)."""
+    long_seq = work / "tet200"
+    long_seq.mkdir(exist_ok=True)
+    for k in range(4 * FRAMES):
+        link = long_seq / f"f{k}.vtk"
+        if not link.exists():
+            os.symlink((seq / f"f{k % FRAMES}.vtk").resolve(), link)
+    small_cmd = ["analyze", "-o", work / "m.h5", "-q", "--fields", "stretch,volume_ratio,flags"]
+    return [{"frames": f, "peak_mb": peak_rss_mb(clothtool_cmd(small_cmd[0], folder, *small_cmd[1:]))}
+            for f, folder in ((FRAMES, seq), (4 * FRAMES, long_seq))]
+
+
 def run(out_dir):
     out_dir = pathlib.Path(out_dir)
     work = out_dir / "data"
@@ -275,15 +289,7 @@ def run(out_dir):
                 "tet_pairs_per_s": m * pairs / small, "vs_floor": small / floor_s,
                 "file_mb": os.path.getsize(work / "s.h5") / 1e6})
 
-    long_seq = work / "tet200"
-    long_seq.mkdir(exist_ok=True)
-    for k in range(4 * FRAMES):
-        link = long_seq / f"f{k}.vtk"
-        if not link.exists():
-            os.symlink((seq / f"f{k % FRAMES}.vtk").resolve(), link)
-    small_cmd = ["analyze", "-o", work / "m.h5", "-q", "--fields", "stretch,volume_ratio,flags"]
-    memory = [{"frames": f, "peak_mb": peak_rss_mb(clothtool_cmd(small_cmd[0], folder, *small_cmd[1:]))}
-              for f, folder in ((FRAMES, seq), (4 * FRAMES, long_seq))]
+    memory = peak_memory(work, seq) if FULL else []
 
     kcols = ["route", "ms", "tets_per_s", "speedup_vs_numpy", "err_F", "err_stretch", "err_R",
              "err_U", "err_volume_ratio"]
@@ -305,10 +311,12 @@ def run(out_dir):
                  f"on {os.cpu_count()} cores.\n\n")
         fh.write(markdown_table(e2e, ecols))
         fh.write("\n### Peak memory (`--fields stretch,volume_ratio,flags`)\n\n")
-        fh.write(markdown_table(memory, ["frames", "peak_mb"]))
+        fh.write(markdown_table(memory, ["frames", "peak_mb"]) if memory
+                 else "`python -m benchmarks --full tet`\n")
     write_doc_table("README.md", "tet", markdown_table(kernel, kcols) + "\n"
-                    + markdown_table(e2e, ecols) + "\n" + markdown_table(memory, ["frames", "peak_mb"]),
-                    "tet")
+                    + markdown_table(e2e, ecols), "tet")
+    write_doc_table("README.md", "tet-memory", markdown_table(memory, ["frames", "peak_mb"]),
+                    "tet", full_only=True)
     write_doc_table("README.md", "tet-readers", markdown_table(readers, ["format", "ms_per_frame",
                                                                          "file_mb"]), "tet")
     for result in [*work.glob("*.h5"), *work.glob("*.xdmf")]:
