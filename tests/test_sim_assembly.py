@@ -101,6 +101,23 @@ def test_pure_stretch_membrane_hessian_with_shear_is_the_derivative_of_its_gradi
     assert rel(dense(matrix), fd_gradient(gradient_of(energy), x)) < 1e-6
 
 
+@pytest.mark.parametrize("membrane", ["triangle", "nodal"])
+def test_the_exact_membrane_hessian_is_the_derivative_of_its_gradient_anywhere(membrane):
+    """With the projection off (statics' ``exact_hessian``) on a compressed, sheared sheet:
+    the derivative of the gradient, indefinite; with it back on, PSD again."""
+    model = model_of(bend=0.0, membrane_model=membrane, **WARP_WEFT)
+    rng = np.random.default_rng(4)
+    x = 0.8 * model.mesh.rest3d + 0.05 * rng.normal(size=model.mesh.rest3d.shape)
+    energy = FemElastic(model)
+    energy.project(False)
+    exact = dense(assembled(energy, x)[2])
+    assert rel(exact, fd_gradient(gradient_of(energy), x)) < 1e-6
+    assert np.linalg.eigvalsh(exact).min() < -1e-3 * np.abs(exact).max()
+    energy.project(True)
+    k = dense(assembled(energy, x)[2])
+    assert np.linalg.eigvalsh(k).min() > -1e-9 * np.abs(k).max()
+
+
 def test_membrane_and_bending_hessian_is_symmetric_psd_anywhere():
     model = model_of()
     x = model.mesh.rest3d + 0.1 * np.random.default_rng(3).normal(size=model.mesh.rest3d.shape)

@@ -90,7 +90,7 @@ def _rasterise(p, faces, radius, pixels):
 
 
 def cusick_drape(material, spacing=0.01, kind="grid", *, seconds=3.0, fps=60, seed=1,
-                 counts=None):
+                 counts=None, exact_finish=True):
     """(drape coefficient, final state, faces) of the Cusick test (BS 5058: a 30 cm disc on an
     18 cm pedestal) of ``material`` (a mapping of ``material`` keys), simulated for
     ``seconds`` at ``fps`` (implicit, BDF2, PCG tolerance 1e-3) from the flat disc with a
@@ -98,9 +98,12 @@ def cusick_drape(material, spacing=0.01, kind="grid", *, seconds=3.0, fps=60, se
     to rest (:func:`clothtool.sim.solve.statics.static_equilibrium` from where the run ends:
     after 3 s a 12 mm disc still creeps, 0.6 points above its rest). The disc (:func:`disc`
     of ``kind``, ``spacing`` and ``seed``) is clamped at the pedestal's radius on every mesh:
-    its rings at 9 cm ± spacing/2 and every vertex within them pinned. ``counts``: a dict
-    that gets the run's Newton and PCG iterations (``newton``, ``pcg``); the state's x is at
-    rest, its v the run's last."""
+    its rings at 9 cm ± spacing/2 and every vertex within them pinned. ``exact_finish``: the
+    static finish tries the membrane's exact Hessian first (``exact_hessian`` there: with
+    the projected one alone, Newton is linear where the folds compress triangles and stalls
+    short of rest on some 6 and 4 mm discs). ``counts``: a dict that gets the
+    run's Newton and PCG iterations (``newton``, ``pcg``) and the finish's Newton steps and
+    last residual (``finish``, ``residual``); the state's x is at rest, its v the run's last."""
     import tempfile
 
     from clothtool.sim.model.config import load_config
@@ -123,13 +126,14 @@ def cusick_drape(material, spacing=0.01, kind="grid", *, seconds=3.0, fps=60, se
         result = integrator.step(state)
         newton += result.newton_iterations
         pcg += result.cg_iterations
-    if counts is not None:
-        counts.update(newton=newton, pcg=pcg)
-    # to 1e-3 of the largest vertex weight (the coefficient then stands within 0.01 points;
-    # the projected Hessians of compressed triangles make Newton linear here: the stiffest
-    # preset, royal-target, takes over 500 steps on a 10 mm disc)
+    # to 1e-3 of the largest vertex weight (the coefficient then stands within 0.01 points)
+    finish = {}
     state.x[:] = static_equilibrium(model, state.x, tolerance=1e-3, load_steps=1,
-                                    max_iterations=5000)
+                                    max_iterations=5000, exact_hessian=exact_finish,
+                                    counts=finish)
+    if counts is not None:
+        counts.update(newton=newton, pcg=pcg, finish=finish["newton"],
+                      residual=finish["residual"])
     return drape_coefficient(state.x, faces, pedestal, radius, (0.0, 0.0, 0.0)), state, faces
 
 

@@ -41,6 +41,11 @@ class FemElastic:
         for term in self.terms:
             term.soften(factor)
 
+    def project(self, flag):
+        """The membrane's Hessian PSD-projected (``flag``, the default) or exact."""
+        for term in self.terms:
+            term.project = flag
+
     def assemble(self, x, grad, values):
         """W(x); overwrites grad (N, 3) with ∇W and values with the projected Hessian K."""
         grad[:] = 0.0

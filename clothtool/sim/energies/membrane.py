@@ -292,16 +292,17 @@ def add_triangle(face, slot, g, hess, grad, values):
 
 
 @njit(cache=True)
-def membrane_assemble(x, faces, dr_inv, area, stretch, k_shear, slots, grad, values):
-    """W_membrane(x); adds its gradient to grad (N, 3) and projected Hessian blocks to values
-    (``stretch`` (M, 4), ``k_shear`` (M,) per triangle, as in every mesh kernel here)."""
+def membrane_assemble(x, faces, dr_inv, area, stretch, k_shear, project, slots, grad, values):
+    """W_membrane(x); adds its gradient to grad (N, 3) and its Hessian blocks (PSD-projected
+    with ``project``) to values (``stretch`` (M, 4), ``k_shear`` (M,) per triangle, as in
+    every mesh kernel here)."""
     g = np.empty(9)
     hess = np.empty((9, 9))
     work = np.empty((6, 6))
     total = 0.0
     for t in range(faces.shape[0]):
         total += membrane_element(load(x, faces[t, 0]), load(x, faces[t, 1]), load(x, faces[t, 2]),
-                                  dr_inv[t], area[t], stretch[t], k_shear[t], True, g, hess, work)
+                                  dr_inv[t], area[t], stretch[t], k_shear[t], project, g, hess, work)
         add_triangle(faces[t], slots[t], g, hess, grad, values)
     return total
 

@@ -37,6 +37,7 @@ class Term:
     """A potential over the stencils ``elements`` (see the module); no constant Hessian."""
 
     elements = None
+    project = True  # the membrane's Hessian PSD-projected (statics may ask for the exact one)
 
     def bind(self, pattern):
         pass
@@ -73,7 +74,7 @@ class Membrane(Term):
 
     def assemble(self, x, grad, values):
         return membrane_assemble(x, self.faces, self.dr_inv, self.area, self.stretch, self.shear,
-                                 self.slots, grad, values)
+                                 self.project, self.slots, grad, values)
 
 
 class NodalMembrane(Term):
@@ -93,7 +94,7 @@ class NodalMembrane(Term):
         return nodal_energy(x, self.faces, self.dr_inv, *self.operator)
 
     def assemble(self, x, grad, values):
-        return nodal_assemble(x, self.faces, self.dr_inv, *self.operator, True, self.slots,
+        return nodal_assemble(x, self.faces, self.dr_inv, *self.operator, self.project, self.slots,
                               grad, values)
 
 
