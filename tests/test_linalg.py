@@ -127,6 +127,41 @@ def test_preconditioners_stay_positive_definite_on_near_singular_barrier_blocks(
         assert res <= tol
 
 
+@pytest.mark.parametrize("k", [1e3, 1e22])
+def test_amg_fine_sweeps_are_those_of_the_matrix_rounded_to_single_precision(k):
+    """The mode multigrid's fine sweeps read a single-precision copy of the matrix in double
+    arithmetic: its cycle is bit for bit the cycle whose fine sweeps read the matrix rounded to
+    single precision (a fixed linear operator), and a block beyond single precision's range is
+    clamped to it, not made infinite."""
+    from clothtool.sim.linalg.multilevel import ModeMultigrid
+
+    model, matrix = contact_system(k)
+    constraints = ConstraintFilter(model.kind)
+    single = ModeMultigrid(model.pattern, model.faces)
+    double = ModeMultigrid(model.pattern, model.faces, smoother=np.float64)
+    for pre in (single, double):
+        pre.update(model.mesh.positions, constraints)
+        pre.setup(matrix, constraints)
+    rhs = np.random.default_rng(2).normal(size=(model.n_vertices, 3))
+    rhs[~model.free] = 0.0
+    out_single, out_double, out_exact = (np.empty_like(rhs) for _ in range(3))
+    single.apply(rhs, out_single)
+    double.apply(rhs, out_exact)
+    double.fine[:] = matrix.values.astype(np.float32)
+    double.apply(rhs, out_double)
+    assert single.fine.dtype == np.float32
+    np.testing.assert_array_equal(out_single, out_double)
+    assert not np.array_equal(out_single, out_exact)  # the rounding is there to see
+    np.testing.assert_allclose(out_single, out_exact, rtol=0,
+                               atol=1e-4 * np.abs(out_exact).max())
+    matrix.values[model.pattern.diag[5]] = 1e60 * np.eye(3)  # beyond single precision
+    single.setup(matrix, constraints)
+    assert np.all(np.isfinite(single.fine))
+    assert np.abs(single.fine[model.pattern.diag[5]]).max() == np.finfo(np.float32).max
+    single.apply(rhs, out_single)
+    assert np.all(np.isfinite(out_single))
+
+
 @pytest.mark.parametrize("material", [{}, {"damping_model": "strain", "stretch": 2e4}])
 def test_animated_capsule_through_a_hanging_sheet_runs_to_the_end(tmp_path, material):
     """Issue 17 (a): a capsule mesh of radius 8 cm moving at 0.6 m/s through a 20×20 sheet

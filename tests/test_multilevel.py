@@ -196,8 +196,11 @@ def test_sweeps_are_block_gauss_seidel(b):
         sweep(pattern.row_ptr, pattern.col, pattern.diag, blocks, inv, r, got, forward)
         np.testing.assert_allclose(got.ravel(), expected, rtol=1e-10, atol=1e-12)
     got, res = np.zeros((n, b)), np.zeros((n, b))
-    from_zero = forward_from_zero3 if b == 3 else forward_from_zero
-    from_zero(pattern.row_ptr, pattern.col, pattern.diag, blocks, inv, r, got, res)
+    if b == 3:
+        forward_from_zero3(pattern.row_ptr, pattern.col, pattern.diag, blocks, blocks, inv, r,
+                           got, res)
+    else:
+        forward_from_zero(pattern.row_ptr, pattern.col, pattern.diag, blocks, inv, r, got, res)
     np.testing.assert_allclose(got.ravel(), np.linalg.solve(lower, r.ravel()), rtol=1e-10)
     np.testing.assert_allclose(res.ravel(), r.ravel() - a @ got.ravel(), atol=1e-10)
 

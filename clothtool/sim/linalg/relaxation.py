@@ -204,12 +204,13 @@ def gauss_seidel3(row_ptr, col, diag, values, diag_inv, r, x, forward):
 
 
 @njit(cache=True)
-def forward_from_zero3(row_ptr, col, diag, values, diag_inv, r, x, res):
+def forward_from_zero3(row_ptr, col, diag, values, diagonal, diag_inv, r, x, res):
     """A forward :func:`gauss_seidel3` sweep from x = 0 and the residual res = r − A x after it,
     in one pass over the blocks instead of two: the sweep reads only the blocks left of the
     diagonal (the others multiply zeros), and row i's residual is what the sweep left of it,
     t_i − A_ii x_i, minus the blocks right of the diagonal, which the second loop takes once x
-    is complete."""
+    is complete. The diagonal blocks A_ii are read from ``diagonal`` (a matrix of the same
+    pattern: the double-precision one when ``values`` is a single-precision copy)."""
     n = x.shape[0]
     for i in range(n):
         t0, t1, t2 = _row_product3(row_ptr[i], diag[i], col, values, x, r[i, 0], r[i, 1],
@@ -219,7 +220,7 @@ def forward_from_zero3(row_ptr, col, diag, values, diag_inv, r, x, res):
         y1 = d[1, 0] * t0 + d[1, 1] * t1 + d[1, 2] * t2
         y2 = d[2, 0] * t0 + d[2, 1] * t1 + d[2, 2] * t2
         x[i, 0], x[i, 1], x[i, 2] = y0, y1, y2
-        a = values[diag[i]]  # D⁻¹ may differ from the block's inverse (a floor, rounding)
+        a = diagonal[diag[i]]  # D⁻¹ may differ from the block's inverse (a floor, rounding)
         res[i, 0] = t0 - (a[0, 0] * y0 + a[0, 1] * y1 + a[0, 2] * y2)
         res[i, 1] = t1 - (a[1, 0] * y0 + a[1, 1] * y1 + a[1, 2] * y2)
         res[i, 2] = t2 - (a[2, 0] * y0 + a[2, 1] * y1 + a[2, 2] * y2)
