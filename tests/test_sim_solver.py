@@ -423,6 +423,49 @@ def test_stiffness_continuation_finds_the_minimum_plain_newton_finds(material):
     assert np.max(np.abs(ends[0] - ends[1])) < 1e-5
 
 
+def test_continuation_after_a_stall_converges_stiff_cloth_at_one_step_per_second():
+    """1e6 N/m at h = 1 s with the continuation only for stalled solves: Newton alone stalls
+    (unconverged after 20 steps, 13–19 of them with velocity corrections within the tolerance
+    and a decrement above it), and every solve is solved again through the softer membranes
+    to convergence; the membrane is itself again after each step."""
+    model, integrator, state, reports = stepped(hanging_sheet(1e6, 4, 4, continuation_after=20),
+                                                4)
+    assert [r.capped for r in reports] == [0, 0, 0, 0]
+    assert all(r.newton_iterations > 20 for r in reports)  # each stalled first
+    assert integrator.max_stretch(state) <= 1.05
+    assert state.x[:, 1].min() < -0.9
+    fresh = build_model(load_config(hanging_sheet(1e6, 4, 4)))
+    for name in ("stretch", "shear"):
+        np.testing.assert_array_equal(getattr(model.terms[0], name),
+                                      getattr(fresh.terms[0], name))
+
+
+@pytest.mark.parametrize("material", [{}, {"damping_model": "frozen"}])
+def test_continuation_after_leaves_a_solve_that_converges_alone_as_it_is(material):
+    """A soft sheet at 30 fps converges within 20 Newton steps: with the continuation only
+    after 20 unconverged steps every step is the one plain Newton takes, bit for bit."""
+    ends, counts = [], []
+    for solver in ({}, {"continuation_after": 20}):
+        cfg = hanging_sheet(2e3, 4 if solver else 0, 5, fps=30, **solver)
+        cfg["material"].update(material)
+        _, _, state, reports = stepped(cfg, 5)
+        ends.append(state.x.copy())
+        counts.append([r.newton_iterations for r in reports])
+    np.testing.assert_array_equal(ends[0], ends[1])
+    assert counts[0] == counts[1]
+
+
+def test_continuation_after_goes_on_alone_where_the_steps_were_not_stiffness_bound():
+    """A solve unconverged after k steps, fewer than half of them with velocity corrections
+    within the tolerance and a decrement above it, has not stalled on the stiffness: Newton
+    goes on alone to its cap (3 steps, then the rest from there) and never softens."""
+    tight = {"newton_tolerance": 1e-9, "newton_iterations": 6, "integrator": "euler"}
+    plain = stepped(hanging_sheet(2e3, 0, 1, fps=30, **tight), 1)[3][0]
+    split = stepped(hanging_sheet(2e3, 4, 1, fps=30, continuation_after=3, **tight), 1)[3][0]
+    assert plain.capped == split.capped == 1
+    assert plain.newton_iterations == split.newton_iterations == 6
+
+
 def test_blow_up_names_the_frame_and_keeps_earlier_frames(tmp_path):
     cfg = config(solver={"max_speed": 0.5}, time={"frames": 10})  # free fall passes 0.5 m/s at frame 2
     with pytest.raises(NumericalError, match=r"blew up at frame 2: velocities exploded"):

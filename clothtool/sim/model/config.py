@@ -741,6 +741,13 @@ class Solver(Section):
                                           "10ⁿ, …, 10× softer, each from the last's solution, "
                                           "then as it is: Newton converges on stiff cloth at "
                                           "large steps (1e6 N/m at h = 1 s: 4); 0 = off")
+    continuation_after: int = setting(0, integer(minimum=0),
+                                      "with `stiffness_continuation`: only a solve that Newton "
+                                      "alone has not converged after this many steps, at least "
+                                      "half of them bound by the stiffness (velocity correction "
+                                      "within `newton_tolerance`, decrement not), is solved "
+                                      "again from the step's start through the softer "
+                                      "membranes; 0 = every solve starts with them")
     max_speed: float = setting(1000.0, positive, "m/s; faster counts as a blow-up")
     # the alternative methods (clothtool.sim.solvers, docs/solvers.md); ignored by the others
     iterations: int = setting(10, integer(minimum=1),

@@ -52,7 +52,14 @@ Nocedal & Wright 2006, "Numerical Optimization", §11.3). Near-inextensible clot
 steps swings through turns whose linearisation stretches its fibres at second order, so Newton
 on it alone takes steps of millimetres (a 1e6 N/m sheet at h = 1 s crawls to its cap, 0.99 m
 short of its converged swing); a softer membrane swings there in a few steps, and the next
-one only tightens it.
+one only tightens it. With ``solver.continuation_after`` k as well, Newton first runs alone;
+only a solve unconverged after k steps of which at least ``STALLED`` were bound by the
+stiffness (velocity correction within ``newton_tolerance``, decrement not: the stiff sheet's
+stall) is solved again from the stage's start through the levels; any other goes on alone.
+A solve that converges within k steps is exactly the one without the continuation. The
+zigzag of a few vertices in a fold (a crumpled start, a sheet on a turning sphere) is the
+other way round, velocity corrections of 0.05–0.1 m/s at a decrement within the tolerance,
+and softening the membrane does not cure it.
 
 Vertices held by pins are constrained in the solve through the filter.
 
@@ -104,6 +111,13 @@ SDIRK_FIRST_TOL = 0.1
 # solve, 5 levels of 10 every solve at 1e7 N/m too; levels of 30 or 100 left the first steps'
 # stiffer solves at the cap
 CONTINUATION_RATIO = 10.0
+# solver.continuation_after: the share of a solve's steps bound by the stiffness (velocity
+# correction within solver.newton_tolerance, decrement not) that marks a stall of the
+# linearisation. Unconverged after 20 steps: the stiff sheet 13–19 such steps, the crumpled
+# start 0–5, the turning sphere 0–5 (whose solves the continuation does not help: as many at
+# the cap, twice the Newton steps); the line search's shortened steps did not tell them apart
+# (6–12 against 0–4 and 0–8)
+STALLED = 0.5
 
 
 def eisenstat_walker(g_norm, g_prev, previous, floor):
@@ -286,24 +300,45 @@ class NewtonIntegrator(Integrator):
         """Newton's minimisation of the stage's incremental potential Σ_k E_k (see the
         module docstring) to ``tol`` (default ``solver.newton_tolerance``): its solution x;
         the counts go into ``report``. With ``solver.stiffness_continuation`` n, the membrane
-        10ⁿ, …, 10× softer first, each solve from the last's solution."""
+        10ⁿ, …, 10× softer first, each solve from the last's solution; with
+        ``solver.continuation_after`` k too, only when Newton alone has stalled in its first k
+        steps (unconverged, ``STALLED`` of them bound by the stiffness), again from the stage's
+        start; otherwise Newton goes on alone up to ``solver.newton_iterations``."""
         for term in self.terms:
             term.begin(stage)
         x, guess = stage.start, stage.guess
+        levels, after = self.solver.stiffness_continuation, self.solver.continuation_after
+        if levels and after:
+            x, converged, stalled = self._newton(stage, x.copy(), guess.copy(), report, tol,
+                                                 after)
+            rest = self.solver.newton_iterations - after
+            if not converged and stalled < STALLED * after and rest > 0:
+                x, converged, _ = self._newton(stage, x, np.zeros_like(guess), report, tol, rest)
+            if converged or stalled < STALLED * after:
+                report.capped += not converged
+                return x
+            x, guess = stage.start, stage.guess
         try:
-            for level in range(self.solver.stiffness_continuation, 0, -1):
+            for level in range(levels, 0, -1):
                 for term in self.terms:
                     term.soften(CONTINUATION_RATIO ** -level)
-                x = self._newton(stage, x, guess, report, tol)
+                x, converged, _ = self._newton(stage, x, guess, report, tol)
+                report.capped += not converged
                 guess = np.zeros_like(guess)
         finally:
-            if self.solver.stiffness_continuation:
+            if levels:
                 for term in self.terms:
                     term.soften(1.0)
-        return self._newton(stage, x, guess, report, tol)
+        x, converged, _ = self._newton(stage, x, guess, report, tol)
+        report.capped += not converged
+        return x
 
-    def _newton(self, stage, x, dx, report, tol):
-        """Newton from x (its first PCG from the guess dx) on the terms begun on ``stage``."""
+    def _newton(self, stage, x, dx, report, tol, cap=None):
+        """Newton from x (its first PCG from the guess dx) on the terms begun on ``stage``, at
+        most ``cap`` steps (default ``solver.newton_iterations``; prescribed motion short of
+        its goal gets three times that many more): (x, converged, the number of its steps
+        bound by the stiffness: a full step's velocity correction max|Δx|/h within
+        ``solver.newton_tolerance``, its decrement not)."""
         solver, terms, matrix = self.solver, self.terms, self.matrix
         h_eff = stage.h_eff
         constraints = ConstraintFilter(self.model.kind, self.model.has_pins)
@@ -311,10 +346,11 @@ class NewtonIntegrator(Integrator):
         tol, grad = solver.newton_tolerance if tol is None else tol, self._grad
         forcing, g_prev, step, cut = solver.tolerance, 0.0, 1.0, False
         line_search = solver.line_search or any(t.needs_line_search for t in terms)
-        # prescribed motion still short of its goal gets three times as many more steps
-        converged = False
-        for it in range(4 * solver.newton_iterations):
-            if it >= solver.newton_iterations and self._behind(x) <= REACHED:
+        # prescribed motion still short of its goal gets 3 × newton_iterations more steps
+        converged, cap = False, solver.newton_iterations if cap is None else cap
+        stalled = 0  # stiffness-bound steps
+        for it in range(cap + 3 * solver.newton_iterations):
+            if it >= cap and self._behind(x) <= REACHED:
                 converged = False
                 break
             energy = sum(term.assemble(x, grad, matrix) for term in terms)
@@ -368,8 +404,14 @@ class NewtonIntegrator(Integrator):
             # converged when a full Newton step is small, in velocity and in its decrement
             # Δxᵀ H Δx = −∇E·Δx; a step the line search shortened is small because the model
             # was poor there, not because x is near the minimum; then each term's own test
-            converged = step == 0.0 or (step == 1.0 and moved <= tol and -float(
-                np.sum(grad * dx)) <= tol * tol * self._free_mass)
+            slow = tol * tol * self._free_mass  # the decrement of a converged step, at most
+            decrement = -float(np.sum(grad * dx))
+            converged = step == 0.0 or (step == 1.0 and moved <= tol and decrement <= slow)
+            # stiffness-bound: its velocities already small, its decrement not (at the solver's
+            # tolerance: SDIRK2's first stage asks for a tenth of it)
+            small = solver.newton_tolerance
+            stalled += (float(np.max(np.abs(dx))) <= small * self.h
+                        and decrement > small * small * self._free_mass)
             if converged and step > 0.0:
                 converged = max(term.settled(free_grad, h_eff) for term in terms) <= tol
             # converged: done unless re-lagging lagged terms (friction) changes their force
@@ -378,10 +420,9 @@ class NewtonIntegrator(Integrator):
                 break
         else:
             converged = False
-        report.capped += not converged
         behind = self._behind(x)
         if behind > REACHED:
             raise NumericalError(
                 f"a moving pin or collider could not reach its position without crossing the "
                 f"cloth (still {behind:.3g} m away after {report.newton_iterations} Newton steps)")
-        return x
+        return x, converged, stalled
