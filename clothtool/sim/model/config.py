@@ -736,7 +736,7 @@ class Solver(Section):
     line_search: bool = setting(True, flag,
                                 "halve a Newton step until the incremental potential does not "
                                 "increase")
-    stiffness_continuation: int | str = setting(0, integer_or("auto", minimum=0),
+    stiffness_continuation: int | str = setting("auto", integer_or("auto", minimum=0),
                                                 "`implicit`: solve each step first with the "
                                                 "membrane's stretch and shear (and their "
                                                 "damping) 10ⁿ, …, 10× softer, each from the "
@@ -745,7 +745,7 @@ class Solver(Section):
                                                 "N/m at h = 1 s: 4); `auto`: n from the "
                                                 "stiffness-to-inertia ratio k·ĥ²/m of the "
                                                 "stage; 0 = off")
-    continuation_after: int = setting(0, integer(minimum=0),
+    continuation_after: int = setting(20, integer(minimum=0),
                                       "with `stiffness_continuation`: only a solve that Newton "
                                       "alone has not converged after this many steps, at least "
                                       "half of them bound by the stiffness (velocity correction "

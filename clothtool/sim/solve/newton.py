@@ -150,10 +150,12 @@ class NewtonIntegrator(Integrator):
     (:mod:`clothtool.sim.solve.potential`).
 
     A subclass names its energy (``energy_class``, see :mod:`clothtool.sim.energies.energy`) and
-    whether it uses ``solver.preconditioner`` (``multigrid``; otherwise block Jacobi).
+    whether it uses ``solver.preconditioner`` (``multigrid``; otherwise block Jacobi) and
+    ``solver.stiffness_continuation`` (``continuation``; otherwise Newton alone).
     """
 
     multigrid = False
+    continuation = False
 
     def __init__(self, model, solver, h):
         super().__init__(model, solver, h)
@@ -315,6 +317,8 @@ class NewtonIntegrator(Integrator):
             term.begin(stage)
         x, guess = stage.start, stage.guess
         levels, after = self.solver.stiffness_continuation, self.solver.continuation_after
+        if not self.continuation:
+            levels = 0
         if levels == "auto":
             levels = self.continuation_levels(stage.h_eff)
         if levels and after:
