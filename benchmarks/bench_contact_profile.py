@@ -37,7 +37,7 @@ PHASES = {
                          ("clothtool.sim.solve.contact", "pairs_add_diagonal")],
     "friction": [("clothtool.sim.solve.contact", name) for name in
                  ("friction_lag", "friction_assemble", "bound_reversed_slips",
-                  "reference_slips", "slip_overshoots")],
+                  "bound_slow_slips", "reference_slips", "slip_overshoots")],
     "line search energies": [("clothtool.sim.solve.contact", "contact_energy"),
                              ("clothtool.sim.solve.contact", "friction_energy")],
     "piece test": [("clothtool.sim.solve.contact", "slide_velocity")],
