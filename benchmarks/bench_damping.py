@@ -3,10 +3,11 @@
     python -m benchmarks damping
 
 Each scene with ``material.damping_model: strain`` (the default), ``frozen`` and with
-``material.damping: 0``, everything else at its default; the stiff and hanging scenes also
-with the default and ``solver.stiffness_continuation: 4`` (each step solved first with the
-membrane 10⁴, …, 10× softer), and with ``solver.continuation_after: 20`` too (only the solves
-Newton alone stalls on in 20 steps):
+``material.damping: 0``, everything else at its default (``solver.stiffness_continuation:
+auto`` after 20 stalled Newton steps); the stiff and hanging scenes also with Newton alone
+(``solver.stiffness_continuation: 0``), with ``stiffness_continuation: 4`` on every solve
+(each step solved first with the membrane 10⁴, …, 10× softer) and with 4 levels only for the
+solves Newton alone stalls on in 20 steps:
 
 - turning sphere: a 1 m sheet (16×16) dropped on a sphere of radius 0.3 m turning at π rad/s,
   μ 0.4, 2 s at 30 fps (``benchmarks/friction_scenes.py``): the cloth's turn rate over the
@@ -40,7 +41,9 @@ ROOT = Path(__file__).resolve().parents[1]
 SCENES = ("turning sphere", "crumpled start", "stiff at 1 s", "hanging_sheet")
 SETTINGS = (("strain (default)", {}, {}), ("frozen", {"damping_model": "frozen"}, {}),
             ("damping 0", {"damping": 0.0}, {}),
-            ("strain, stiffness_continuation 4", {}, {"stiffness_continuation": 4}),
+            ("strain, Newton alone", {}, {"stiffness_continuation": 0}),
+            ("strain, stiffness_continuation 4", {},
+             {"stiffness_continuation": 4, "continuation_after": 0}),
             ("strain, stiffness_continuation 4 after 20", {},
              {"stiffness_continuation": 4, "continuation_after": 20}))
 

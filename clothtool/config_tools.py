@@ -99,8 +99,8 @@ solver:
   overshoot_bound: false  # contact friction: a slip a Newton step turned over takes the bound's curvature
   forcing_from_second: false  # contact: the linear solves' Eisenstat–Walker ratio starts at Newton's second iterate
   line_search: true     # backtracking line search on the Newton steps
-  stiffness_continuation: 0  # implicit: solve each step first with the membrane 10^n … 10× softer (stiff cloth at large steps); 0 = off
-  continuation_after: 0  # with stiffness_continuation: only solves Newton alone stalls on (unconverged after this many steps, half of them stiffness-bound); 0 = every solve
+  stiffness_continuation: auto  # implicit: solve each step first with the membrane 10^n … 10× softer (stiff cloth at large steps); auto = n from k·ĥ²/m; 0 = off
+  continuation_after: 20  # with stiffness_continuation: only solves Newton alone stalls on (unconverged after this many steps, half of them stiffness-bound); 0 = every solve
   max_speed: 1000.0     # m/s, a faster vertex counts as a blow-up (exit code 3)
   iterations: 10        # pbd, xpbd, projective, vbd: constraint sweeps / local-global iterations / vertex sweeps per step
   pbd_variant: gauss-seidel  # pbd: gauss-seidel (symmetric sweeps), jacobi or hierarchical

@@ -7,7 +7,7 @@ import pytest
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from clothtool.errors import NumericalError
+from clothtool.errors import InputError, NumericalError
 from clothtool.io.ply import read_ply, write_ply
 from clothtool.sim.api import simulate
 from clothtool.sim.linalg.blocks import BlockMatrix, ConstraintFilter, block_multiply
@@ -399,7 +399,8 @@ def test_stiffness_continuation_converges_stiff_cloth_at_one_step_per_second():
     """1e6 N/m at h = 1 s: the swing from flat of near-inextensible cloth, on which Newton
     alone crawls to its cap; from membranes 10⁴, …, 10× softer every solve converges, and the
     membrane is itself again after each step."""
-    model, integrator, state, reports = stepped(hanging_sheet(1e6, 4, 4), 4)
+    model, integrator, state, reports = stepped(hanging_sheet(1e6, 4, 4, continuation_after=0),
+                                                4)
     assert [r.capped for r in reports] == [0, 0, 0, 0]
     assert integrator.max_stretch(state) <= 1.05
     assert state.x[:, 1].min() < -0.9  # it swung down (it hangs 1 m below its corners)
@@ -417,7 +418,7 @@ def test_stiffness_continuation_finds_the_minimum_plain_newton_finds(material):
     tight = {"newton_tolerance": 1e-5, "tolerance": 1e-10, "newton_iterations": 60}
     ends = []
     for levels in (0, 2):
-        cfg = hanging_sheet(2e3, levels, 5, fps=30, **tight)
+        cfg = hanging_sheet(2e3, levels, 5, fps=30, continuation_after=0, **tight)
         cfg["material"].update(material)
         ends.append(stepped(cfg, 5)[2].x.copy())
     assert np.max(np.abs(ends[0] - ends[1])) < 1e-5
@@ -440,19 +441,63 @@ def test_continuation_after_a_stall_converges_stiff_cloth_at_one_step_per_second
                                       getattr(fresh.terms[0], name))
 
 
+def test_automatic_continuation_levels_follow_the_stiffness_to_inertia_ratio():
+    """``auto``: the fewest n with k·ĥ²/(m·10ⁿ) ≤ 1e4, m the free vertices' mean mass (the
+    12×12 sheet: 0.2 kg/m² on 1 m², pinned corners left out: 1.4026 g): at 1e6 N/m and
+    ĥ = 2/3 s k·ĥ²/m = 3.17e8, 5 levels; SDIRK2's first stage (ĥ = 0.293 s) 6.12e7, 4; 1e7 N/m
+    3.17e9, 6; 2000 N/m at 30 fps (ĥ = 1/45 s) 704: none."""
+    levels = []
+    for stretch, fps, h_eff in ((1e6, 1, 2 / 3), (1e6, 1, 1 - np.sqrt(0.5)), (1e7, 1, 2 / 3),
+                                (2e3, 30, 1 / 45)):
+        cfg = load_config(hanging_sheet(stretch, "auto", 1, fps=fps))
+        integrator = make_integrator(build_model(cfg), cfg.solver, cfg.step)
+        levels.append(integrator.continuation_levels(h_eff))
+    assert levels == [5, 4, 6, 0]
+    with pytest.raises(InputError, match=r"solver.stiffness_continuation must be an integer or "
+                                         r"'auto', got 'always'"):
+        load_config(hanging_sheet(1e6, "always", 1))
+
+
+@pytest.mark.parametrize("stretch", [1e6, 1e7])
+def test_automatic_continuation_after_a_stall_converges_stiff_cloth(stretch):
+    """1e6 and 1e7 N/m at h = 1 s, the level count from the stiffness-to-inertia ratio: every
+    stalled solve is solved again through 4–6 softer membranes, every solve converges (four
+    fixed levels left two of the 1e7 N/m sheet's solves at the cap)."""
+    _, integrator, state, reports = stepped(hanging_sheet(stretch, "auto", 4,
+                                                          continuation_after=20), 4)
+    assert [r.capped for r in reports] == [0, 0, 0, 0]
+    assert integrator.max_stretch(state) <= 1.05
+    assert state.x[:, 1].min() < -0.9
+
+
+@pytest.mark.parametrize("levels", [4, "auto"])
 @pytest.mark.parametrize("material", [{}, {"damping_model": "frozen"}])
-def test_continuation_after_leaves_a_solve_that_converges_alone_as_it_is(material):
+def test_continuation_after_leaves_a_solve_that_converges_alone_as_it_is(material, levels):
     """A soft sheet at 30 fps converges within 20 Newton steps: with the continuation only
     after 20 unconverged steps every step is the one plain Newton takes, bit for bit."""
     ends, counts = [], []
     for solver in ({}, {"continuation_after": 20}):
-        cfg = hanging_sheet(2e3, 4 if solver else 0, 5, fps=30, **solver)
+        cfg = hanging_sheet(2e3, levels if solver else 0, 5, fps=30, **solver)
         cfg["material"].update(material)
         _, _, state, reports = stepped(cfg, 5)
         ends.append(state.x.copy())
         counts.append([r.newton_iterations for r in reports])
     np.testing.assert_array_equal(ends[0], ends[1])
     assert counts[0] == counts[1]
+
+
+def test_continuation_after_beyond_the_newton_cap_leaves_the_linearised_step_as_it_is():
+    """``newton_iterations: 1`` (Baraff–Witkin's linearised step) on stiff cloth with the
+    continuation after 20 steps: the solve stops at its own cap of one step, as without it."""
+    ends = []
+    for solver in ({"stiffness_continuation": 0}, {"stiffness_continuation": "auto",
+                                                   "continuation_after": 20}):
+        cfg = hanging_sheet(1e7, 0, 2, integrator="euler", newton_iterations=1)
+        cfg["solver"].update(solver)
+        _, _, state, reports = stepped(cfg, 2)
+        assert [r.newton_iterations for r in reports] == [1, 1]
+        ends.append(state.x.copy())
+    np.testing.assert_array_equal(ends[0], ends[1])
 
 
 def test_continuation_after_goes_on_alone_where_the_steps_were_not_stiffness_bound():

@@ -12,7 +12,9 @@ the left product P_iᵀ(…) is taken once per coarse slot of the row, not once 
 
 The prolongators' blocks start with the identity (a node's translations are its aggregate's,
 :mod:`~clothtool.sim.linalg.modes`): the fine P_i = [I₃ | C_i] (C_i 3×5) and the coarse
-T_a = [[I₃, X_a], [0, Y_a]] (X_a 3×5, Y_a 5×5). The products skip what the identity makes trivial.
+T_a = [[I₃, X_a], [0, Y_a]] (X_a 3×5, Y_a 5×5). The products skip what the identity makes trivial,
+and the zeros the modes put in the other columns: a rotation's column e_k × d has no k-th
+entry, and a node's own rotations and shears do not mix (Y_a = diag(ρ_a/ρ_A I₃, S_a), S_a 2×2).
 """
 
 import numpy as np
@@ -39,38 +41,60 @@ def _slot(slots, used, target, acc):
 
 
 @njit(cache=True, inline="always")
+def _column(a, p, r, c, b):
+    """Σ_q a[r, q] p[q, c] over the q where p's column c of the modes can be non-zero: the
+    rotation c = 3 + k has no k-th translation row; on a coarse level (b = M) a rotation's
+    column has a's own rotation c alone below the translations, a shear's the two shears."""
+    v = 0.0
+    for q in range(3):
+        if q + 3 != c:
+            v += a[r, q] * p[q, c]
+    if b == M:
+        if c < 6:
+            v += a[r, c] * p[c, c]
+        else:
+            v += a[r, 6] * p[6, c]
+            v += a[r, 7] * p[7, c]
+    return v
+
+
+@njit(cache=True, inline="always")
 def _right(a, p, out, b):
-    """out += a p for a b×b block a and a block p (b × M) that starts with the identity,
+    """out += a p for a b×b block a and a block p (b × M) of the modes' form (the module):
     p[:, :3] = [I₃; 0] (b a constant of the caller's branch, so the loops unroll)."""
     for r in range(b):
         for c in range(3):
             out[r, c] += a[r, c]
         for c in range(3, M):
-            v = 0.0
-            for q in range(b):
-                v += a[r, q] * p[q, c]
-            out[r, c] += v
+            out[r, c] += _column(a, p, r, c, b)
 
 
 @njit(cache=True, inline="always")
 def _left(p, acc, out, b):
-    """out += pᵀ acc for a block p (b × M) that starts with the identity and acc (b × M)."""
+    """out += pᵀ acc for a block p (b × M) of the modes' form and acc (b × M)."""
     for r in range(3):
         for c in range(M):
             out[r, c] += acc[r, c]
     for r in range(3, M):
         for c in range(M):
             v = 0.0
-            for q in range(b):
-                v += p[q, r] * acc[q, c]
+            for q in range(3):
+                if q + 3 != r:
+                    v += p[q, r] * acc[q, c]
+            if b == M:
+                if r < 6:
+                    v += p[r, r] * acc[r, c]
+                else:
+                    v += p[6, r] * acc[6, c]
+                    v += p[7, r] * acc[7, c]
             out[r, c] += v
 
 
 @njit(cache=True)
 def galerkin(row_ptr, col, values, skip, slot_map, mirror, p, out):
     """out = Pᵀ A P: ``values`` (nnzb, b, b) the level's blocks, ``p`` (n, b, M) its
-    prolongator's, each starting with the identity (p[i][:, :3] = [I₃; 0]: the fine
-    P_i = [I₃ | C_i], b = 3, and the coarse T_a = [[I₃, X_a], [0, Y_a]], b = M); rows and
+    prolongator's, of the modes' form (the module: the fine P_i = [I₃ | C_i], b = 3, and the
+    coarse T_a = [[I₃, X_a], [0, Y_a]], b = M, zero where the modes are); rows and
     columns of nodes with ``skip`` set (pinned vertices, nodes without a free vertex) are left
     out. A_c is symmetric: only its blocks on and above the diagonal are summed, those below are
     their transposes (``mirror``: the slot of each coarse block's transpose,

@@ -97,7 +97,13 @@ def cholesky(a):
     non-positive is replaced by the matrix's own diagonal entry, or 1 where that is zero: the
     factor is then that of A + E with E ≥ 0 diagonal, still a valid SPD preconditioner, and an
     unknown with no support stays uncoupled."""
-    n = a.shape[0]
+    _factor(a, a.shape[0])
+
+
+@njit(cache=True, inline="always")
+def _factor(a, n):
+    """:func:`cholesky` of the leading n×n block of a (n a constant where the caller's size is
+    one, so the loops unroll)."""
     for j in range(n):
         diagonal = a[j, j]
         d = diagonal
@@ -115,9 +121,9 @@ def cholesky(a):
 
 
 @njit(cache=True, inline="always")
-def _substitute(lower, y):
-    """y = (L Lᵀ)⁻¹ y in place: forward substitution with L, then backward with Lᵀ."""
-    n = y.shape[0]
+def _substitute(lower, y, n):
+    """y = (L Lᵀ)⁻¹ y in place for the leading n×n factor L: forward substitution with L, then
+    backward with Lᵀ."""
     for i in range(n):
         s = y[i]
         for k in range(i):
@@ -139,28 +145,27 @@ def cholesky_solve(lower, r, z):
     y = np.empty(n)
     for i in range(n):
         y[i] = r[i // b, i % b]
-    _substitute(lower, y)
+    _substitute(lower, y, n)
     for i in range(n):
         z[i // b, i % b] = y[i]
 
 
 @njit(cache=True)
 def block_inverses(values, diag, skip, out):
-    """out[i] = D_i⁻¹ for the diagonal block of every node (zero for nodes with ``skip``),
+    """out[i] = D_i⁻¹ for the M×M diagonal block of every node (zero for nodes with ``skip``),
     through :func:`cholesky` (so a block with an unsupported mode is inverted on the rest)."""
-    m = out.shape[1]
-    work = np.empty((m, m))
-    y = np.empty(m)
+    work = np.empty((M, M))
+    y = np.empty(M)
     for i in range(out.shape[0]):
         out[i] = 0.0
         if skip[i]:
             continue
         work[:, :] = values[diag[i]]
-        cholesky(work)
-        for c in range(m):  # column c of the inverse: L⁻ᵀ L⁻¹ e_c
+        _factor(work, M)
+        for c in range(M):  # column c of the inverse: L⁻ᵀ L⁻¹ e_c
             y[:] = 0.0
             y[c] = 1.0
-            _substitute(work, y)
+            _substitute(work, y, M)
             out[i, :, c] = y
 
 

@@ -27,9 +27,10 @@ from clothtool import fabrics, lab_units
 from clothtool.errors import InputError
 from clothtool.lab_units import STANDARD_GRAVITY
 from clothtool.sim.model import methods
-from clothtool.sim.model.schema import (Section, as_dict, choice, choices, flag, integer, listing,
-                                        number, one_of, pair_or_number, path, resolve_paths,
-                                        section, setting, suggest, tagged, type_error, vector3)
+from clothtool.sim.model.schema import (Section, as_dict, choice, choices, flag, integer,
+                                        integer_or, listing, number, one_of, pair_or_number,
+                                        path, resolve_paths, section, setting, suggest, tagged,
+                                        type_error, vector3)
 
 __all__ = ["load_config", "resolved_yaml", "as_dict", "Config", "SECTIONS", "COLLIDER_KINDS"]
 
@@ -735,13 +736,16 @@ class Solver(Section):
     line_search: bool = setting(True, flag,
                                 "halve a Newton step until the incremental potential does not "
                                 "increase")
-    stiffness_continuation: int = setting(0, integer(minimum=0),
-                                          "`implicit`: solve each step first with the "
-                                          "membrane's stretch and shear (and their damping) "
-                                          "10ⁿ, …, 10× softer, each from the last's solution, "
-                                          "then as it is: Newton converges on stiff cloth at "
-                                          "large steps (1e6 N/m at h = 1 s: 4); 0 = off")
-    continuation_after: int = setting(0, integer(minimum=0),
+    stiffness_continuation: int | str = setting("auto", integer_or("auto", minimum=0),
+                                                "`implicit`: solve each step first with the "
+                                                "membrane's stretch and shear (and their "
+                                                "damping) 10ⁿ, …, 10× softer, each from the "
+                                                "last's solution, then as it is: Newton "
+                                                "converges on stiff cloth at large steps (1e6 "
+                                                "N/m at h = 1 s: 4); `auto`: n from the "
+                                                "stiffness-to-inertia ratio k·ĥ²/m of the "
+                                                "stage; 0 = off")
+    continuation_after: int = setting(20, integer(minimum=0),
                                       "with `stiffness_continuation`: only a solve that Newton "
                                       "alone has not converged after this many steps, at least "
                                       "half of them bound by the stiffness (velocity correction "

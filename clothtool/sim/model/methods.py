@@ -41,7 +41,7 @@ SEAMS = "seams"  # mesh.seams: the stitch term and the weld (clothtool.sim.model
 ATTACH = "attach"  # scene.attach: vertices carried by a collider's surface (moving pins)
 PANEL_DAMPING = "per-panel damping"  # materials.NAME.damping other than material.damping
 STRAIN_DAMPING = "strain damping"  # material.damping_model: strain (clothtool.sim.energies.dissipation)
-CONTINUATION = "stiffness continuation"  # solver.stiffness_continuation > 0 (clothtool.sim.solve.newton)
+CONTINUATION = "stiffness continuation"  # solver.stiffness_continuation given (clothtool.sim.solve.newton)
 FEATURES = (FRICTION, CONTACT, MOVING_PINS, BDF2, MATERIALS, SEAMS, ATTACH, PANEL_DAMPING,
             STRAIN_DAMPING, CONTINUATION)
 
@@ -80,7 +80,7 @@ def requested_features(config, given=()):
     """(feature, config key) for each optional feature a :class:`~clothtool.sim.model.config.Config`
     asks for; ``given``: the dotted keys the config file sets (a default ``bdf2`` or
     ``strain`` damping is not a request: the methods without it step by their own
-    first-order scheme and damp with their own βK)."""
+    first-order scheme and damp with their own βK; without continuation, Newton alone)."""
     out = []
     if config.solver.integrator == "bdf2" and "solver.integrator" in given:
         out.append((BDF2, "solver.integrator: bdf2"))
@@ -108,7 +108,7 @@ def requested_features(config, given=()):
         out.append((SEAMS, "mesh.seams"))
     if config.scene.attach:
         out.append((ATTACH, "scene.attach"))
-    if config.solver.stiffness_continuation:
+    if config.solver.stiffness_continuation and "solver.stiffness_continuation" in given:
         out.append((CONTINUATION, "solver.stiffness_continuation"))
     return out
 

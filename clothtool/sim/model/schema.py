@@ -183,6 +183,19 @@ def pair_or_number(*, exclusive):
     return check
 
 
+def integer_or(word, *, minimum):
+    """An integer ≥ ``minimum``, or the one word ``word``."""
+    number_check = integer(minimum=minimum)
+
+    def check(value, key):
+        if value == word:
+            return value
+        if isinstance(value, str):
+            raise type_error(key, f"an integer or {word!r}", value)
+        return number_check(value, key)
+    return check
+
+
 def choice(options):
     def check(value, key):
         if value not in options:

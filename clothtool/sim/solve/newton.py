@@ -52,8 +52,10 @@ Nocedal & Wright 2006, "Numerical Optimization", §11.3). Near-inextensible clot
 steps swings through turns whose linearisation stretches its fibres at second order, so Newton
 on it alone takes steps of millimetres (a 1e6 N/m sheet at h = 1 s crawls to its cap, 0.99 m
 short of its converged swing); a softer membrane swings there in a few steps, and the next
-one only tightens it. With ``solver.continuation_after`` k as well, Newton first runs alone;
-only a solve unconverged after k steps of which at least ``STALLED`` were bound by the
+one only tightens it. With ``stiffness_continuation: auto``, n is the fewest levels that
+bring the stage's stiffness-to-inertia ratio k·ĥ²/m to ``CONTINUATION_TARGET`` (none for
+ordinary cloth at ordinary steps). With ``solver.continuation_after`` k as well, Newton first
+runs alone; only a solve unconverged after k steps of which at least ``STALLED`` were bound by the
 stiffness (velocity correction within ``newton_tolerance``, decrement not: the stiff sheet's
 stall) is solved again from the stage's start through the levels; any other goes on alone.
 A solve that converges within k steps is exactly the one without the continuation. The
@@ -111,6 +113,11 @@ SDIRK_FIRST_TOL = 0.1
 # solve, 5 levels of 10 every solve at 1e7 N/m too; levels of 30 or 100 left the first steps'
 # stiffer solves at the cap
 CONTINUATION_RATIO = 10.0
+# solver.stiffness_continuation: auto: as many levels as bring the stage's stiffness-to-inertia
+# ratio k·ĥ²/m (the stiffest membrane k, the free vertices' mean mass m) to at most this.
+# 12×12 sheets at h = 1 s after 20 stalled steps (ĥ = 2h/3: 3.2e8 at 1e6 N/m, 3.2e9 at 1e7):
+# 1e4 converged every solve of both (4 steps); 1e5 left SDIRK2's first stage capped in each
+CONTINUATION_TARGET = 1e4
 # solver.continuation_after: the share of a solve's steps bound by the stiffness (velocity
 # correction within solver.newton_tolerance, decrement not) that marks a stall of the
 # linearisation. Unconverged after 20 steps: the stiff sheet 13–19 such steps, the crumpled
@@ -143,10 +150,12 @@ class NewtonIntegrator(Integrator):
     (:mod:`clothtool.sim.solve.potential`).
 
     A subclass names its energy (``energy_class``, see :mod:`clothtool.sim.energies.energy`) and
-    whether it uses ``solver.preconditioner`` (``multigrid``; otherwise block Jacobi).
+    whether it uses ``solver.preconditioner`` (``multigrid``; otherwise block Jacobi) and
+    ``solver.stiffness_continuation`` (``continuation``; otherwise Newton alone).
     """
 
     multigrid = False
+    continuation = False
 
     def __init__(self, model, solver, h):
         super().__init__(model, solver, h)
@@ -299,8 +308,8 @@ class NewtonIntegrator(Integrator):
     def minimise(self, stage, report, tol=None):
         """Newton's minimisation of the stage's incremental potential Σ_k E_k (see the
         module docstring) to ``tol`` (default ``solver.newton_tolerance``): its solution x;
-        the counts go into ``report``. With ``solver.stiffness_continuation`` n, the membrane
-        10ⁿ, …, 10× softer first, each solve from the last's solution; with
+        the counts go into ``report``. With ``solver.stiffness_continuation`` n (``auto``:
+        :meth:`continuation_levels`), the membrane 10ⁿ, …, 10× softer first, each solve from the last's solution; with
         ``solver.continuation_after`` k too, only when Newton alone has stalled in its first k
         steps (unconverged, ``STALLED`` of them bound by the stiffness), again from the stage's
         start; otherwise Newton goes on alone up to ``solver.newton_iterations``."""
@@ -308,9 +317,13 @@ class NewtonIntegrator(Integrator):
             term.begin(stage)
         x, guess = stage.start, stage.guess
         levels, after = self.solver.stiffness_continuation, self.solver.continuation_after
+        if not self.continuation:
+            levels = 0
+        if levels == "auto":
+            levels = self.continuation_levels(stage.h_eff)
         if levels and after:
             x, converged, stalled = self._newton(stage, x.copy(), guess.copy(), report, tol,
-                                                 after)
+                                                 min(after, self.solver.newton_iterations))
             rest = self.solver.newton_iterations - after
             if not converged and stalled < STALLED * after and rest > 0:
                 x, converged, _ = self._newton(stage, x, np.zeros_like(guess), report, tol, rest)
@@ -332,6 +345,17 @@ class NewtonIntegrator(Integrator):
         x, converged, _ = self._newton(stage, x, guess, report, tol)
         report.capped += not converged
         return x
+
+    def continuation_levels(self, h_eff):
+        """``solver.stiffness_continuation: auto``: the fewest levels n ≥ 0 with
+        k·ĥ²/(m·10ⁿ) ≤ ``CONTINUATION_TARGET``, k the stiffest membrane (stretch or shear, N/m),
+        m the free vertices' mean mass: Newton's stall on near-inextensible cloth grows with
+        the membrane's stiffness over the inertia M/ĥ² it is solved against."""
+        model = self.model
+        k = max(float(model.tri_stretch[:, :2].max()), float(model.tri_shear.max()))
+        mass = self._free_mass / max(int(np.count_nonzero(model.free)), 1)
+        ratio = k * h_eff * h_eff / mass
+        return max(0, int(np.ceil(np.log10(ratio / CONTINUATION_TARGET))))
 
     def _newton(self, stage, x, dx, report, tol, cap=None):
         """Newton from x (its first PCG from the guess dx) on the terms begun on ``stage``, at

@@ -13,3 +13,4 @@ from clothtool.sim.solve.newton import NewtonIntegrator
 class ImplicitEuler(NewtonIntegrator):
     energy_class = FemElastic
     multigrid = True
+    continuation = True
