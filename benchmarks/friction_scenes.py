@@ -19,9 +19,9 @@ G = 9.81
 SURFACES = ("plane", "box", "mesh", "cloth")
 
 
-def incline_scene(folder, surface, theta, mu, seconds, n=8, fps=30):
+def incline_scene(folder, surface, theta, mu, seconds, n=8, fps=30, solver=None):
     """The config (a dict) of an n × n sheet of 0.3 m resting on an incline of θ rad with
-    friction μ, and the downhill unit vector. The sheet starts at the collision margin (or
+    friction μ (``solver``: solver keys), and the downhill unit vector. The sheet starts at the collision margin (or
     the self-collision thickness above the lower sheet), at rest."""
     c, s = np.cos(theta), np.sin(theta)
     down = np.array([-c, -s, 0.0])
@@ -58,16 +58,19 @@ def incline_scene(folder, surface, theta, mu, seconds, n=8, fps=30):
               "material": {"density": 0.2, "stretch": 1000.0, "shear": 100.0, "bend": 1e-5},
               "scene": scene, "time": {"fps": fps, "frames": int(round(seconds * fps))},
               "output": {"dir": str(folder / "out")}}
+    if solver:
+        config["solver"] = dict(solver)
     return config, down, n * n
 
 
 SETTLE = 0.5  # s: the sheet, laid at the margin, settles onto its contact first
 
 
-def incline_motion(folder, surface, theta, mu, seconds):
+def incline_motion(folder, surface, theta, mu, seconds, solver=None):
     """(travel along the slope (m) in ``seconds`` after SETTLE, acceleration fitted to the
-    second half of those seconds)."""
-    config, down, n_top = incline_scene(folder, surface, theta, mu, SETTLE + seconds)
+    second half of those seconds); ``solver``: solver keys of the run."""
+    config, down, n_top = incline_scene(folder, surface, theta, mu, SETTLE + seconds,
+                                        solver=solver)
     simulate(config, progress=False)
     paths = sorted((folder / "out").glob("frame_*.ply"))
     centre = np.array([read_ply(p).vertices[-n_top:].mean(axis=0) for p in paths]) @ down

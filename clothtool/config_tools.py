@@ -97,6 +97,7 @@ solver:
   newton_tolerance: 0.04  # m/s, Newton stops when the largest velocity correction max|Δx|/h is below
   friction_velocity: 1.0e-4  # m/s, contact friction holds below this sliding speed (IPC's ε_v)
   overshoot_bound: false  # contact friction: a slip a Newton step turned over takes the bound's curvature
+  slow_slip_bound: 0.0  # m/s, contact friction: slips slower than this take the bound's curvature (0 = off)
   forcing_from_second: false  # contact: the linear solves' Eisenstat–Walker ratio starts at Newton's second iterate
   line_search: true     # backtracking line search on the Newton steps
   stiffness_continuation: auto  # implicit: solve each step first with the membrane 10^n … 10× softer (stiff cloth at large steps); auto = n from k·ĥ²/m; 0 = off

@@ -16,9 +16,9 @@ from hypothesis import strategies as st
 
 from clothtool.contact.barrier import (EDGE_EDGE, POINT_PLANE, POINT_TRIANGLE, contact_assemble,
                                        pair_geometry)
-from clothtool.contact.friction import (bound_reversed_slips, f0, f1, friction_assemble,
-                                        friction_energy, friction_lag, reference_slips,
-                                        slip_overshoots, tangent_basis)
+from clothtool.contact.friction import (bound_reversed_slips, bound_slow_slips, f0, f1,
+                                        friction_assemble, friction_energy, friction_lag,
+                                        reference_slips, slip_overshoots, tangent_basis)
 
 
 def dense_friction_hessian(rows, weights, blocks, count, n):
@@ -467,3 +467,60 @@ def test_slip_overshoots_marks_sliding_pairs_a_step_turns_over_and_the_bound_tak
                                        rtol=1e-12)
         else:
             np.testing.assert_array_equal(bounded[k], blocks[k])
+
+
+@settings(max_examples=30, deadline=None)
+@given(seed=st.integers(0, 2**31), slow=st.sampled_from([0.5 * EPS_V, 2.0 * EPS_V, 5.0 * EPS_V]))
+def test_slow_slips_get_the_isotropic_bound_and_the_faster_keep_their_blocks(seed, slow):
+    """bound_slow_slips replaces the block of each pair slipping slower than ``slow`` by
+    (μλ/ĥ) F0'(v)/v T Tᵀ: the Hessian of its half-quadratic bound μλĥ F0'(v₀)‖v(x)‖²/(2v₀)
+    by central differences, PSD, at least the exact block, equal to it across v̂; the
+    faster pairs keep friction_assemble's blocks."""
+    rng, x, base, lag = mixed_pairs(seed)
+    n, count, eps_v, h_eff = N_FREE, COUNT, EPS_V, H_EFF
+    rows, weights, bases, mu_lambda, c = lag
+    blocks = np.zeros((count, 3, 3))
+    friction_assemble(x, base, h_eff, eps_v, *lag, count, n, np.zeros((len(x), 3)), blocks)
+    bounded = blocks.copy()
+    got = bound_slow_slips(x, base, h_eff, eps_v, slow, *lag, count, n, bounded)
+    want = 0
+    for k in range(count):
+        v = slip(x, base, h_eff, lag, k)
+        speed = np.linalg.norm(v)
+        if speed >= slow:
+            np.testing.assert_array_equal(bounded[k], blocks[k])
+            continue
+        want += 1
+        weight = f1(speed, eps_v) / speed  # F0'(v₀)/v₀
+
+        def bound_gradient(y):
+            """∇ of μλĥ F0'(v₀)‖v(y)‖²/(2v₀) on the cloth vertices (n, 3)."""
+            u = slip(y, base, h_eff, lag, k)
+            g = np.zeros((n, 3))
+            for j in range(4):
+                if rows[k, j] < n:
+                    g[rows[k, j]] += mu_lambda[k] * weight * weights[k, j] * (bases[k] @ u)
+            return g
+
+        step = 1e-6
+        fd = np.empty((3 * n, 3 * n))
+        for a in range(3 * n):
+            yp, ym = x.copy(), x.copy()
+            yp[a // 3, a % 3] += step
+            ym[a // 3, a % 3] -= step
+            fd[:, a] = (bound_gradient(yp) - bound_gradient(ym)).ravel() / (2 * step)
+        mine = dense_friction_hessian(rows[k:k + 1], weights[k:k + 1], bounded[k:k + 1], 1, n)
+        np.testing.assert_allclose(mine, fd, atol=1e-6 * np.abs(mine).max())
+        assert np.linalg.eigvalsh(bounded[k] - blocks[k]).min() >= -1e-9 * np.abs(bounded[k]).max()
+        across = bases[k] @ np.array([-v[1], v[0]]) / speed
+        assert across @ bounded[k] @ across == pytest.approx(across @ blocks[k] @ across, rel=1e-10)
+    assert got == want
+
+
+@settings(max_examples=200, deadline=None)
+@given(v0=st.floats(1e-3, 20.0), u=st.floats(0.0, 40.0))
+def test_the_slow_slip_bound_is_a_bound_of_the_friction_potential(v0, u):
+    """F0(u) ≤ F0(v₀) + F0'(v₀)(u² − v₀²)/(2v₀) for every slip u, equal at u = v₀ (in units
+    of ε_v = 1): the curvature bound_slow_slips takes is that of a quadratic above F0."""
+    bound = f0(v0, 1.0) + f1(v0, 1.0) * (u * u - v0 * v0) / (2.0 * v0)
+    assert f0(u, 1.0) <= bound + 1e-12 * max(1.0, bound)

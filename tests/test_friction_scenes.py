@@ -24,6 +24,22 @@ def test_kinetic_friction_slides_at_the_closed_form(tmp_path, surface, degrees):
     assert accel == pytest.approx(G * (np.sin(theta) - mu * np.cos(theta)), rel=0.02)
 
 
+@pytest.mark.parametrize("surface", ["plane", "cloth"])
+@pytest.mark.parametrize("degrees", [15, 30])
+def test_slow_slip_bound_holds_and_slides_at_the_closed_forms(tmp_path, surface, degrees):
+    """With ``solver.slow_slip_bound`` (slips slower than 0.3 mm/s take the bound's
+    curvature), μ = tan θ + 0.03 holds and μ = tan θ − 0.1 slides at g(sin θ − μ cos θ)."""
+    theta, solver = np.radians(degrees), {"slow_slip_bound": 3e-4}
+    (tmp_path / "hold").mkdir()
+    (tmp_path / "slide").mkdir()
+    travel, _ = incline_motion(tmp_path / "hold", surface, theta, np.tan(theta) + 0.03, 2.0,
+                               solver)
+    assert abs(travel) < 1e-3, travel
+    mu = np.tan(theta) - 0.1
+    _, accel = incline_motion(tmp_path / "slide", surface, theta, mu, 1.0, solver)
+    assert accel == pytest.approx(G * (np.sin(theta) - mu * np.cos(theta)), rel=0.02)
+
+
 def test_cloth_turns_with_a_turning_sphere(tmp_path):
     """Codimensional IPC's test, smaller: μ 0.4, the sphere turning at 180°/s about the
     vertical; after a second the cloth turns with it."""

@@ -35,6 +35,10 @@ potential itself is unchanged), which makes the step shorter there. Only pairs t
 overshoot take it: on every sliding pair it slows a sheet sliding down an incline 3.4–4.4 %
 below Coulomb's rate (the step test stops such linear convergence early); on the overshot
 pairs alone it moves the 15° cloth-on-cloth slide 2.3 % off that rate, so it is an option.
+With ``solver.slow_slip_bound`` v_b, every pair slipping slower than v_b takes the isotropic
+curvature (μλ/ĥ) F0'(v)/v T Tᵀ of the bound F0(‖u‖) ≤ F0(v) + F0'(v)(‖u‖² − v²)/(2v)
+(:func:`bound_slow_slips`): slips of a few ε_v, which the Newton tolerance does not
+resolve, are where the twisted sheet's Newton steps oscillate.
 """
 
 import numpy as np
@@ -283,6 +287,34 @@ def bound_reversed_slips(x, base, h_eff, eps_v, rows, weights, bases, mu_lambda,
         if v < eps_v or (a * reference[k, 0] + b * reference[k, 1] >= 0.0 and not overshot[k]):
             continue
         scale = mu_lambda[k] * inv_h / v
+        basis = bases[k]
+        for p in range(3):
+            for q in range(3):
+                blocks[k, p, q] = scale * (basis[p, 0] * basis[q, 0] + basis[p, 1] * basis[q, 1])
+        bounded += 1
+    return bounded
+
+
+@njit(cache=True)
+def bound_slow_slips(x, base, h_eff, eps_v, slow, rows, weights, bases, mu_lambda, c, count, n,
+                     blocks):
+    """Where a pair slips slower than ``slow`` (m/s), its Hessian block becomes the isotropic
+    (μλ/ĥ) F0'(v)/v T Tᵀ, the curvature of the half-quadratic bound
+    F0(‖u‖) ≤ F0(v) + F0'(v)(‖u‖² − v²)/(2v) at v = ‖v_k‖ (F0' concave on [0, ∞): F0'(v)/v
+    falls with v, 2/ε_v at v = 0), in place of F0''(v) along v̂, which is (2 − 2s)/ε_v below
+    ε_v and 0 beyond: Newton's steps at slips that the Newton tolerance does not resolve
+    then cannot carry them back and forth across the stick–slip threshold (the
+    iteratively reweighted step of a norm, Weiszfeld's; Beck & Sabach 2015, "Weiszfeld's
+    method: old and new results"). Returns the number of pairs bounded."""
+    inv_h = 1.0 / h_eff
+    bounded = 0
+    for k in range(count):
+        a, b = _slip(x, base, inv_h, rows[k], weights[k], bases[k], c[k], n)
+        v = np.sqrt(a * a + b * b)
+        if v >= slow:
+            continue
+        s = v / eps_v
+        scale = mu_lambda[k] * inv_h * ((2.0 - s) / eps_v if s < 1.0 else 1.0 / v)
         basis = bases[k]
         for p in range(3):
             for q in range(3):

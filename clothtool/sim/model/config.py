@@ -728,6 +728,12 @@ class Solver(Section):
                                     "to the other side takes the curvature of the "
                                     "half-quadratic bound of ‖v‖ for the rest of the step's "
                                     "lag (fewer Newton steps at stick–slip)")
+    slow_slip_bound: float = setting(0.0, non_negative,
+                                     "m/s; contact friction: a pair slipping slower than this "
+                                     "takes the isotropic curvature of the half-quadratic bound "
+                                     "of its friction potential in Newton's matrix (fewer "
+                                     "Newton steps at stick–slip; the potential is unchanged); "
+                                     "0 = off")
     forcing_from_second: bool = setting(False, flag,
                                         "contact: Eisenstat–Walker's ratio starts at Newton's "
                                         "second iterate (the step's start is no iterate of "

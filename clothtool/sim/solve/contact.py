@@ -46,8 +46,9 @@ from clothtool.contact.barrier import (POINT_PLANE, barrier_blocks, contact_asse
                                        contact_energy, pair_distance, pair_thickness)
 from clothtool.contact.broadphase import contact_stencils
 from clothtool.contact.ccd import collision_free_step, near_pairs
-from clothtool.contact.friction import (bound_reversed_slips, friction_assemble, friction_energy,
-                                       friction_lag, reference_slips, slip_overshoots)
+from clothtool.contact.friction import (bound_reversed_slips, bound_slow_slips, friction_assemble,
+                                       friction_energy, friction_lag, reference_slips,
+                                       slip_overshoots)
 from clothtool.contact.intersect import intersecting_pairs
 from clothtool.contact.pieces import cloth_pieces, slide_velocity
 from clothtool.errors import InputError, NumericalError
@@ -107,9 +108,11 @@ def _lagged_pairs(k):
 class BarrierContact:
     """The contact term of one run's Newton integrator (workspace only, see module)."""
 
-    def __init__(self, scene, mass, free, h, stiffness, friction_velocity, overshoot_bound=False):
+    def __init__(self, scene, mass, free, h, stiffness, friction_velocity, overshoot_bound=False,
+                 slow_slip=0.0):
         self.scene = scene
         self.overshoot_bound = overshoot_bound  # solver.overshoot_bound
+        self.slow_slip = slow_slip  # slips slower take the bound's curvature (0: none)
         self.h = h
         n, total = scene.n_cloth, scene.n_total
         self.kappa = KAPPA * max(float(np.mean(mass)) / (h * h), stiffness)
@@ -383,6 +386,9 @@ class BarrierContact:
             self._w[n_act:size] = w[:self.n_lag]
             energy += friction_assemble(x, self.base, self.h_eff, self.eps_v, rows, w, bases,
                                         mu_lambda, c, self.n_lag, n, grad, self._blocks[n_act:size])
+            if self.slow_slip > 0.0:
+                bound_slow_slips(x, self.base, self.h_eff, self.eps_v, self.slow_slip, rows, w,
+                                 bases, mu_lambda, c, self.n_lag, n, self._blocks[n_act:size])
             bound_reversed_slips(x, self.base, self.h_eff, self.eps_v, rows, w, bases, mu_lambda,
                                  c, self.n_lag, n, self.reference, self.overshot,
                                  self._blocks[n_act:size])

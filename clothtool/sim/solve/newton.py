@@ -193,7 +193,8 @@ class NewtonIntegrator(Integrator):
         if model.contact is not None:  # mesh colliders and self-collision
             contact = BarrierContact(model.contact, model.mass, model.free, h,
                                      max(model.tri_stretch[:, :2].max(), model.tri_shear.max()),
-                                     solver.friction_velocity, solver.overshoot_bound)
+                                     solver.friction_velocity, solver.overshoot_bound,
+                                     solver.slow_slip_bound)
             contact.check_initial(model.mesh.positions)
             terms.append(Contact(contact))
         return terms
