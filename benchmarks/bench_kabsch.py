@@ -28,7 +28,7 @@ import numba
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from benchmarks.common import markdown_table, write_csv, write_doc_table
+from benchmarks.common import full_or, markdown_table, write_csv, write_doc_table
 from clothtool.analysis.deformation2d import DEGENERATE_TOL
 from clothtool.analysis.kabsch import horn_matrix, vertex_rotations
 from clothtool.analysis.symeig import adjugate_eigenvector4, jacobi_eigvals_batch
@@ -37,7 +37,9 @@ from clothtool.analysis.variant3d import KABSCH_FIELDS, Variant3D
 
 NX = NY = 224
 FRAMES = 6
-REPEAT = 7
+# timed runs after a warm-up, the medians: clothtool's routes, the numpy route (a tenth as fast)
+REPEAT = full_or(7, 3)
+NUMPY_REPEAT = full_or(3, 1)
 
 
 def make_mesh(nx=NX, ny=NY, frames=FRAMES):
@@ -223,7 +225,7 @@ def run(out_dir):
     numba.set_num_threads(1)
     t_ours_1, c_ours_1 = median_seconds(ours)
     numba.set_num_threads(threads)
-    t_numpy, c_numpy = median_seconds(theirs, repeat=3)
+    t_numpy, c_numpy = median_seconds(theirs, repeat=NUMPY_REPEAT)
 
     variant = Variant3D(faces, n, KABSCH_FIELDS + ("flags",), DEGENERATE_TOL)
     buffers = variant.buffers(np.float32)
@@ -277,7 +279,7 @@ def run(out_dir):
               ["table", *columns, *thin_columns, *eigen_columns, *agreement])
     md = [f"## 3D (Kabsch) variant\n\n{NX}×{NY} vertices ({n} vertices, {len(faces)} triangles), "
           f"{len(pairs)} pairs of a moving, stretching, bending wave; medians of {REPEAT} runs "
-          f"(numpy route: 3); {threads} numba threads on {os.cpu_count()} CPUs, load average "
+          f"(numpy route: {NUMPY_REPEAT}); {threads} numba threads on {os.cpu_count()} CPUs, load average "
           f"{load:.1f} at the start (other work on the machine slows the wall-clock figures; "
           "vertex_pairs_per_cpu_s counts this process's CPU time, all threads). Rotation errors are "
           "max |R − R_ref| over all entries and vertices; the longdouble reference is Horn's method "
