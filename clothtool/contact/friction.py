@@ -271,6 +271,14 @@ def _slip_along(y, dy, step, base, inv_h, row, w, basis, c, n):
 
 
 @njit(cache=True)
+def _tangent_block(scale, basis, block):
+    """block = scale · T Tᵀ: an isotropic curvature in the pair's tangent plane."""
+    for p in range(3):
+        for q in range(3):
+            block[p, q] = scale * (basis[p, 0] * basis[q, 0] + basis[p, 1] * basis[q, 1])
+
+
+@njit(cache=True)
 def bound_reversed_slips(x, base, h_eff, eps_v, rows, weights, bases, mu_lambda, c, count, n,
                          reference, overshot, blocks):
     """Where a pair slides (‖v‖ ≥ ε_v) against its reference slip (v·v_ref < 0: it reversed
@@ -287,10 +295,7 @@ def bound_reversed_slips(x, base, h_eff, eps_v, rows, weights, bases, mu_lambda,
         if v < eps_v or (a * reference[k, 0] + b * reference[k, 1] >= 0.0 and not overshot[k]):
             continue
         scale = mu_lambda[k] * inv_h / v
-        basis = bases[k]
-        for p in range(3):
-            for q in range(3):
-                blocks[k, p, q] = scale * (basis[p, 0] * basis[q, 0] + basis[p, 1] * basis[q, 1])
+        _tangent_block(scale, bases[k], blocks[k])
         bounded += 1
     return bounded
 
@@ -315,9 +320,6 @@ def bound_slow_slips(x, base, h_eff, eps_v, slow, rows, weights, bases, mu_lambd
             continue
         s = v / eps_v
         scale = mu_lambda[k] * inv_h * ((2.0 - s) / eps_v if s < 1.0 else 1.0 / v)
-        basis = bases[k]
-        for p in range(3):
-            for q in range(3):
-                blocks[k, p, q] = scale * (basis[p, 0] * basis[q, 0] + basis[p, 1] * basis[q, 1])
+        _tangent_block(scale, bases[k], blocks[k])
         bounded += 1
     return bounded
