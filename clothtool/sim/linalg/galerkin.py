@@ -41,20 +41,21 @@ def _slot(slots, used, target, acc):
 
 
 @njit(cache=True, inline="always")
-def _column(a, p, r, c, b):
-    """Σ_q a[r, q] p[q, c] over the q where p's column c of the modes can be non-zero: the
-    rotation c = 3 + k has no k-th translation row; on a coarse level (b = M) a rotation's
-    column has a's own rotation c alone below the translations, a shear's the two shears."""
+def _mode_dot(p, c, y, b):
+    """Σ_q y[q] p[q, c] over the q where column c of a block p (b × M) of the modes' form can be
+    non-zero: the rotation c = 3 + k has no k-th translation row; on a coarse level (b = M) a
+    rotation's column has its own rotation alone below the translations, a shear's the two
+    shears."""
     v = 0.0
     for q in range(3):
         if q + 3 != c:
-            v += a[r, q] * p[q, c]
+            v += y[q] * p[q, c]
     if b == M:
         if c < 6:
-            v += a[r, c] * p[c, c]
+            v += y[c] * p[c, c]
         else:
-            v += a[r, 6] * p[6, c]
-            v += a[r, 7] * p[7, c]
+            v += y[6] * p[6, c]
+            v += y[7] * p[7, c]
     return v
 
 
@@ -66,7 +67,7 @@ def _right(a, p, out, b):
         for c in range(3):
             out[r, c] += a[r, c]
         for c in range(3, M):
-            out[r, c] += _column(a, p, r, c, b)
+            out[r, c] += _mode_dot(p, c, a[r], b)
 
 
 @njit(cache=True, inline="always")
@@ -77,17 +78,7 @@ def _left(p, acc, out, b):
             out[r, c] += acc[r, c]
     for r in range(3, M):
         for c in range(M):
-            v = 0.0
-            for q in range(3):
-                if q + 3 != r:
-                    v += p[q, r] * acc[q, c]
-            if b == M:
-                if r < 6:
-                    v += p[r, r] * acc[r, c]
-                else:
-                    v += p[6, r] * acc[6, c]
-                    v += p[7, r] * acc[7, c]
-            out[r, c] += v
+            out[r, c] += _mode_dot(p, r, acc[:, c], b)
 
 
 @njit(cache=True)
