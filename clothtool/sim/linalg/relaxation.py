@@ -181,22 +181,9 @@ def block_jacobi(values, diag, kind, floor, inv):
 
 
 @njit(cache=True)
-def _row_product3(row_ptr_lo, row_ptr_hi, col, values, x, t0, t1, t2):
-    """(t0, t1, t2) − Σ A_ij x_j over the blocks lo ≤ s < hi of a row."""
-    for s in range(row_ptr_lo, row_ptr_hi):
-        a = values[s]
-        j = col[s]
-        x0, x1, x2 = x[j, 0], x[j, 1], x[j, 2]
-        t0 -= a[0, 0] * x0 + a[0, 1] * x1 + a[0, 2] * x2
-        t1 -= a[1, 0] * x0 + a[1, 1] * x1 + a[1, 2] * x2
-        t2 -= a[2, 0] * x0 + a[2, 1] * x1 + a[2, 2] * x2
-    return t0, t1, t2
-
-
-@njit(cache=True)
-def _row_product3_descending(lo, hi, col, values, x, t0, t1, t2):
-    """:func:`_row_product3` over the blocks hi > s ≥ lo, the last first."""
-    for s in range(hi - 1, lo - 1, -1):
+def _row_product3(first, stop, step, col, values, x, t0, t1, t2):
+    """(t0, t1, t2) − Σ A_ij x_j over the blocks s of a row in range(first, stop, step)."""
+    for s in range(first, stop, step):
         a = values[s]
         j = col[s]
         x0, x1, x2 = x[j, 0], x[j, 1], x[j, 2]
@@ -215,15 +202,16 @@ def gauss_seidel3(row_ptr, col, diag, values, diag_inv, r, x, forward):
     for step in range(n):
         if forward:
             i = step
-            t0, t1, t2 = _row_product3(row_ptr[i], diag[i], col, values, x, r[i, 0], r[i, 1],
-                                       r[i, 2])
-            t0, t1, t2 = _row_product3(diag[i] + 1, row_ptr[i + 1], col, values, x, t0, t1, t2)
+            t0, t1, t2 = _row_product3(row_ptr[i], diag[i], 1, col, values, x, r[i, 0],
+                                       r[i, 1], r[i, 2])
+            t0, t1, t2 = _row_product3(diag[i] + 1, row_ptr[i + 1], 1, col, values, x, t0, t1,
+                                       t2)
         else:
             i = n - 1 - step
-            t0, t1, t2 = _row_product3_descending(diag[i] + 1, row_ptr[i + 1], col, values, x,
-                                                  r[i, 0], r[i, 1], r[i, 2])
-            t0, t1, t2 = _row_product3_descending(row_ptr[i], diag[i], col, values, x, t0, t1,
-                                                  t2)
+            t0, t1, t2 = _row_product3(row_ptr[i + 1] - 1, diag[i], -1, col, values, x,
+                                       r[i, 0], r[i, 1], r[i, 2])
+            t0, t1, t2 = _row_product3(diag[i] - 1, row_ptr[i] - 1, -1, col, values, x, t0, t1,
+                                       t2)
         d = diag_inv[i]
         x[i, 0] = d[0, 0] * t0 + d[0, 1] * t1 + d[0, 2] * t2
         x[i, 1] = d[1, 0] * t0 + d[1, 1] * t1 + d[1, 2] * t2
@@ -240,7 +228,7 @@ def forward_from_zero3(row_ptr, col, diag, values, diagonal, diag_inv, r, x, res
     pattern: the double-precision one when ``values`` is a single-precision copy)."""
     n = x.shape[0]
     for i in range(n):
-        t0, t1, t2 = _row_product3(row_ptr[i], diag[i], col, values, x, r[i, 0], r[i, 1],
+        t0, t1, t2 = _row_product3(row_ptr[i], diag[i], 1, col, values, x, r[i, 0], r[i, 1],
                                    r[i, 2])
         d = diag_inv[i]
         y0 = d[0, 0] * t0 + d[0, 1] * t1 + d[0, 2] * t2
@@ -252,5 +240,6 @@ def forward_from_zero3(row_ptr, col, diag, values, diagonal, diag_inv, r, x, res
         res[i, 1] = t1 - (a[1, 0] * y0 + a[1, 1] * y1 + a[1, 2] * y2)
         res[i, 2] = t2 - (a[2, 0] * y0 + a[2, 1] * y1 + a[2, 2] * y2)
     for i in range(n):
-        res[i, 0], res[i, 1], res[i, 2] = _row_product3(diag[i] + 1, row_ptr[i + 1], col, values,
-                                                        x, res[i, 0], res[i, 1], res[i, 2])
+        res[i, 0], res[i, 1], res[i, 2] = _row_product3(diag[i] + 1, row_ptr[i + 1], 1, col,
+                                                        values, x, res[i, 0], res[i, 1],
+                                                        res[i, 2])
