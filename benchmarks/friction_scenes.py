@@ -21,8 +21,8 @@ SURFACES = ("plane", "box", "mesh", "cloth")
 
 def incline_scene(folder, surface, theta, mu, seconds, n=8, fps=30, solver=None):
     """The config (a dict) of an n × n sheet of 0.3 m resting on an incline of θ rad with
-    friction μ (``solver``: solver keys), and the downhill unit vector. The sheet starts at the collision margin (or
-    the self-collision thickness above the lower sheet), at rest."""
+    friction μ (``solver``: solver keys), and the downhill unit vector. The sheet starts at the
+    collision margin (or the self-collision thickness above the lower sheet), at rest."""
     c, s = np.cos(theta), np.sin(theta)
     down = np.array([-c, -s, 0.0])
     normal = np.array([-s, c, 0.0])
