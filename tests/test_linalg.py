@@ -129,10 +129,10 @@ def test_preconditioners_stay_positive_definite_on_near_singular_barrier_blocks(
 
 @pytest.mark.parametrize("k", [1e3, 1e22])
 def test_amg_fine_sweeps_are_those_of_the_matrix_rounded_to_single_precision(k):
-    """The mode multigrid's fine sweeps read a single-precision copy of the matrix in double
-    arithmetic: its cycle is bit for bit the cycle whose fine sweeps read the matrix rounded to
-    single precision (a fixed linear operator), and a block beyond single precision's range is
-    clamped to it, not made infinite."""
+    """The mode multigrid's fine and first coarse sweeps read single-precision copies of their
+    matrices in double arithmetic: its cycle is bit for bit the cycle whose sweeps there read
+    the matrices rounded to single precision (a fixed linear operator), and a block beyond
+    single precision's range is clamped to it, not made infinite."""
     from clothtool.sim.linalg.multilevel import ModeMultigrid
 
     model, matrix = contact_system(k)
@@ -148,8 +148,9 @@ def test_amg_fine_sweeps_are_those_of_the_matrix_rounded_to_single_precision(k):
     single.apply(rhs, out_single)
     double.apply(rhs, out_exact)
     double.fine[:] = matrix.values.astype(np.float32)
+    double.first[:] = double.first.astype(np.float32)
     double.apply(rhs, out_double)
-    assert single.fine.dtype == np.float32
+    assert single.fine.dtype == single.first.dtype == np.float32
     np.testing.assert_array_equal(out_single, out_double)
     assert not np.array_equal(out_single, out_exact)  # the rounding is there to see
     np.testing.assert_allclose(out_single, out_exact, rtol=0,

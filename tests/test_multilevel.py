@@ -234,7 +234,8 @@ def test_sweeps_are_block_gauss_seidel(b):
         forward_from_zero3(pattern.row_ptr, pattern.col, pattern.diag, blocks, blocks, inv, r,
                            got, res)
     else:
-        forward_from_zero(pattern.row_ptr, pattern.col, pattern.diag, blocks, inv, r, got, res)
+        forward_from_zero(pattern.row_ptr, pattern.col, pattern.diag, blocks, blocks, inv, r,
+                          got, res)
     np.testing.assert_allclose(got.ravel(), np.linalg.solve(lower, r.ravel()), rtol=1e-10)
     np.testing.assert_allclose(res.ravel(), r.ravel() - a @ got.ravel(), atol=1e-10)
 

@@ -10,9 +10,9 @@ Its pieces, each a module, in the order pyamg's ``smoothed_aggregation_solver`` 
 - :mod:`~clothtool.sim.linalg.galerkin`: the coarse operators Pᵀ A P of every level, per solve
   (:meth:`ModeMultigrid.setup`);
 - :mod:`~clothtool.sim.linalg.relaxation`: symmetric block Gauss–Seidel on every level,
-  a forward sweep before the coarse correction and a backward one after it (on the fine level
-  reading a single-precision copy of the matrix, ``SMOOTHER``), and a dense Cholesky factor of
-  the coarsest level;
+  a forward sweep before the coarse correction and a backward one after it (on the fine and
+  the first coarse level reading single-precision copies of their matrices, ``SMOOTHER``), and
+  a dense Cholesky factor of the coarsest level;
 - here: the levels and the cycle (:func:`mode_cycle`).
 
 The fine operator is the filtered S A S + (I − S) that PCG works with: pinned vertices have no
@@ -49,12 +49,15 @@ STIFF = 1e8
 # sheet systems of ``benchmarks linalg``, PCG to the run's tolerances: 20.6 iterations a solve
 # with one sweep, 16.4 with three, 15.7 with four)
 SWEEPS = 4
-# the fine level's sweeps read a single-precision copy of the matrix (values clamped to its
-# range), in double-precision arithmetic: the cycle is then exactly that of the matrix rounded
-# to single precision, a fixed symmetric positive definite operator, and the sweeps, which at
-# 256² wait on memory, read half the bytes. PCG's products and residuals stay in double
-# precision, so no solve is less accurate. The captured sheet systems of ``benchmarks linalg``:
-# the same iteration counts, 0.90× the CPU per solve at 64²
+# the sweeps of the fine and the first coarse level read single-precision copies of their
+# matrices (values clamped to its range; the diagonal blocks and their inverses stay double), in
+# double-precision arithmetic: the cycle is then exactly that of those matrices rounded to single
+# precision, a fixed symmetric positive definite operator, and the sweeps, which at 256² wait on
+# memory, read half the bytes. PCG's products and residuals stay in double precision, so no
+# solve is less accurate. The captured sheet systems of ``benchmarks linalg``: the same
+# iteration counts; the fine copy 0.90× the CPU per solve at 64²; the first coarse level's
+# (at 256² its 8×8 blocks hold 34 MB in double), with the forward sweeps' residual from the
+# blocks left of the diagonal alone: a cycle at 256² 33.8 → 25.8 ms
 SMOOTHER = np.float32
 
 
@@ -104,11 +107,12 @@ class ModeMultigrid:
         self.skip = [np.zeros(s, dtype=np.bool_) for s in sizes]
         self.fine = np.zeros((len(pattern.col), 3, 3), dtype=smoother)
         self.fine_mirror = transposes(pattern.row_ptr, pattern.col)
+        self.first = np.zeros((self.block_off[1], M, M), dtype=smoother)  # first coarse level
         self.modes = (self.q, self.agg0, self.dinv0, self.node_off, self.block_off,
                        self.row_off, self.row_ptr, self.col, self.values, self.dinv,
                        self.transfer, self.cagg, self.coarsest, np.concatenate(self.cdiag),
                        np.zeros((total, M)), np.zeros((total, M)), np.zeros((total, M)),
-                       np.zeros((pattern.n, 3)), pattern.diag, self.fine)
+                       np.zeros((pattern.n, 3)), pattern.diag, self.fine, self.first)
 
     def _level(self, c):
         """Coarse level c's (row_ptr, col, values, nodes slice)."""
@@ -159,6 +163,7 @@ class ModeMultigrid:
                 block_inverses(level[2], self.cdiag[c], self.skip[c], self.dinv[level[3]])
                 row_ptr, col, values = level[:3]
                 skip, slot_map, p = self.skip[c], self.cslot[c], self.transfer[level[3]]
+        _clamped(self._level(0)[2], float(np.finfo(self.first.dtype).max), self.first)
         _dense(*self._level(len(self.sizes) - 1)[:3], self.coarsest)
         cholesky(self.coarsest)
         self.matrix = matrix
@@ -188,6 +193,16 @@ def _single(values, mirror, big, out):
             for q in range(3):
                 v = values[s, p, q] if t >= s else values[t, q, p]
                 out[s, p, q] = min(max(v, -big), big)
+
+
+@njit(cache=True)
+def _clamped(values, big, out):
+    """out = values in out's precision, clamped to its largest finite magnitude ``big`` (the
+    Galerkin operators are exactly symmetric, and so is the copy)."""
+    for s in range(values.shape[0]):
+        for p in range(values.shape[1]):
+            for q in range(values.shape[2]):
+                out[s, p, q] = min(max(values[s, p, q], -big), big)
 
 
 @njit(cache=True)
@@ -266,17 +281,22 @@ def _transfer(block, src, dst, transpose):
 
 @njit(cache=True)
 def _coarse_vcycle(mg, r, z, t):
-    """z = a V-cycle on the coarse levels for right-hand side r on the first of them."""
+    """z = a V-cycle on the coarse levels for right-hand side r on the first of them (the first
+    level's sweeps reading its single-precision copy, its diagonal blocks the double ones)."""
     (_, _, _, node_off, block_off, row_off, c_row_ptr, c_col, c_values, c_dinv,
      transfer, c_agg, coarsest, c_diag) = mg[:14]
+    first = mg[20]
     levels = node_off.shape[0] - 1
     for c in range(levels - 1):  # down: pre-smooth, restrict the residual
         lo, hi = node_off[c], node_off[c + 1]
         rp = c_row_ptr[row_off[c]:row_off[c] + hi - lo + 1]
         cl, vals = c_col[block_off[c]:block_off[c + 1]], c_values[block_off[c]:block_off[c + 1]]
-        forward_from_zero(rp, cl, c_diag[lo:hi], vals, c_dinv[lo:hi], r[lo:hi], z[lo:hi],
-                          t[lo:hi])
-        if c > 0:
+        if c == 0:
+            forward_from_zero(rp, cl, c_diag[lo:hi], first, vals, c_dinv[lo:hi], r[lo:hi],
+                              z[lo:hi], t[lo:hi])
+        else:
+            forward_from_zero(rp, cl, c_diag[lo:hi], vals, vals, c_dinv[lo:hi], r[lo:hi],
+                              z[lo:hi], t[lo:hi])
             for _ in range(SWEEPS - 1):
                 gauss_seidel(rp, cl, c_diag[lo:hi], vals, c_dinv[lo:hi], r[lo:hi], z[lo:hi],
                              True)
@@ -290,9 +310,13 @@ def _coarse_vcycle(mg, r, z, t):
         rp = c_row_ptr[row_off[c]:row_off[c] + hi - lo + 1]
         cl, vals = c_col[block_off[c]:block_off[c + 1]], c_values[block_off[c]:block_off[c + 1]]
         _prolong(transfer[lo:hi], c_agg[lo:hi], z[hi:node_off[c + 2]], z[lo:hi])
-        for _ in range(1 if c == 0 else SWEEPS):
-            gauss_seidel(rp, cl, c_diag[lo:hi], vals, c_dinv[lo:hi], r[lo:hi], z[lo:hi],
+        if c == 0:
+            gauss_seidel(rp, cl, c_diag[lo:hi], first, c_dinv[lo:hi], r[lo:hi], z[lo:hi],
                          False)
+        else:
+            for _ in range(SWEEPS):
+                gauss_seidel(rp, cl, c_diag[lo:hi], vals, c_dinv[lo:hi], r[lo:hi], z[lo:hi],
+                             False)
 
 
 @njit(cache=True)
@@ -300,7 +324,7 @@ def mode_cycle(rhs, out, row_ptr, col, values, mg):
     """out = B rhs: a forward block Gauss–Seidel sweep, the coarse correction (a V-cycle on the
     coarse levels, the coarsest solved by its Cholesky factor), a backward sweep."""
     q0, agg0, dinv0, node_off = mg[:4]
-    r, z, t, t0, diag, single = mg[14:]
+    r, z, t, t0, diag, single = mg[14:20]
     forward_from_zero3(row_ptr, col, diag, single, values, dinv0, rhs, out, t0)
     lo, hi = node_off[0], node_off[1]
     _restrict3(q0, agg0, t0, r[lo:hi])

@@ -72,9 +72,10 @@ def gauss_seidel(row_ptr, col, diag, values, diag_inv, r, x, forward):
 
 
 @njit(cache=True)
-def forward_from_zero(row_ptr, col, diag, values, diag_inv, r, x, res):
-    """:func:`forward_from_zero3` for a coarse level (M×M blocks): a forward sweep from x = 0
-    and res = r − A x, in one pass over the blocks."""
+def forward_from_zero(row_ptr, col, diag, values, diagonal, diag_inv, r, x, res):
+    """:func:`forward_from_zero3` for a coarse level (M×M blocks, exactly symmetric): a forward
+    sweep from x = 0 and res = r − A x, reading each block left of the diagonal once and no
+    block right of it; the diagonal blocks from ``diagonal``."""
     n = x.shape[0]
     t = np.empty(M)
     for i in range(n):
@@ -84,9 +85,15 @@ def forward_from_zero(row_ptr, col, diag, values, diag_inv, r, x, res):
         _solve_node(diag_inv[i], t, x, i)
         for p in range(M):
             res[i, p] = t[p]
-        _subtract_products(diag[i], diag[i] + 1, col, values, x, res[i])
-    for i in range(n):
-        _subtract_products(diag[i] + 1, row_ptr[i + 1], col, values, x, res[i])
+        _subtract_products(diag[i], diag[i] + 1, col, diagonal, x, res[i])
+        for s in range(row_ptr[i], diag[i]):  # res_j −= A_ijᵀ x_i = A_ji x_i, j < i
+            a = values[s]
+            j = col[s]
+            for p in range(M):
+                v = 0.0
+                for q in range(M):
+                    v += a[q, p] * x[i, q]
+                res[j, p] -= v
 
 
 @njit(cache=True)
@@ -221,11 +228,13 @@ def gauss_seidel3(row_ptr, col, diag, values, diag_inv, r, x, forward):
 @njit(cache=True)
 def forward_from_zero3(row_ptr, col, diag, values, diagonal, diag_inv, r, x, res):
     """A forward :func:`gauss_seidel3` sweep from x = 0 and the residual res = r − A x after it,
-    in one pass over the blocks instead of two: the sweep reads only the blocks left of the
-    diagonal (the others multiply zeros), and row i's residual is what the sweep left of it,
-    t_i − A_ii x_i, minus the blocks right of the diagonal, which the second loop takes once x
-    is complete. The diagonal blocks A_ii are read from ``diagonal`` (a matrix of the same
-    pattern: the double-precision one when ``values`` is a single-precision copy)."""
+    reading each block left of the diagonal once and no block right of it (``values`` exactly
+    symmetric): the sweep reads only the blocks left of the diagonal (the others multiply
+    zeros); row i's residual is what the sweep left of it, t_i − A_ii x_i, minus Σ_{j>i} A_ij x_j,
+    whose terms A_ji ᵀ x_j row j subtracts while its blocks are at hand, once x_j is known (in
+    the order of j, as a pass over row i's blocks right of the diagonal would). The diagonal
+    blocks A_ii are read from ``diagonal`` (a matrix of the same pattern: the double-precision
+    one when ``values`` is a single-precision copy)."""
     n = x.shape[0]
     for i in range(n):
         t0, t1, t2 = _row_product3(row_ptr[i], diag[i], 1, col, values, x, r[i, 0], r[i, 1],
@@ -239,7 +248,9 @@ def forward_from_zero3(row_ptr, col, diag, values, diagonal, diag_inv, r, x, res
         res[i, 0] = t0 - (a[0, 0] * y0 + a[0, 1] * y1 + a[0, 2] * y2)
         res[i, 1] = t1 - (a[1, 0] * y0 + a[1, 1] * y1 + a[1, 2] * y2)
         res[i, 2] = t2 - (a[2, 0] * y0 + a[2, 1] * y1 + a[2, 2] * y2)
-    for i in range(n):
-        res[i, 0], res[i, 1], res[i, 2] = _row_product3(diag[i] + 1, row_ptr[i + 1], 1, col,
-                                                        values, x, res[i, 0], res[i, 1],
-                                                        res[i, 2])
+        for s in range(row_ptr[i], diag[i]):  # res_j −= A_ijᵀ x_i = A_ji x_i, j < i
+            b = values[s]
+            j = col[s]
+            res[j, 0] -= b[0, 0] * y0 + b[1, 0] * y1 + b[2, 0] * y2
+            res[j, 1] -= b[0, 1] * y0 + b[1, 1] * y1 + b[2, 1] * y2
+            res[j, 2] -= b[0, 2] * y0 + b[1, 2] * y1 + b[2, 2] * y2
