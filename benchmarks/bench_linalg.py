@@ -17,11 +17,12 @@ systems, timed phase by phase in CPU seconds (medians; the machine is shared):
   the whole solve, setup included.
 
 Then the whole step (``linalg-cost``): the same sheet at 64² and 256², one step per frame, as a
-user runs it (``simulate``), on this tree at its defaults, with ``preconditioner: amg`` and with
-the other preconditioner, and on two earlier commits at theirs (``BASES``: 3ee4668, main when the
-linear-solve issue was filed; 46ee052, round one's linearised step), each in a process of its
-own, alternating: CPU ms per step (the run's CPU over its frames after a warm-up run), Newton
-steps per step, PCG iterations per Newton step and µs per vertex-step.
+user runs it (``simulate``), on this tree at its defaults and with each other multilevel
+preconditioner (``multigrid``, ``amg``, ``hybrid``), and on two earlier commits at theirs
+(``BASES``: 3ee4668, main when the linear-solve issue was filed; 46ee052, round one's
+linearised step), each in a process of its own, alternating: CPU ms per step (the run's CPU over
+its frames after a warm-up run), Newton steps per step, PCG iterations per Newton step and µs
+per vertex-step.
 
 Writes ``bench-results/linalg.{csv,md}`` and docs/solvers.md's ``linalg-phases`` and
 ``linalg-cost`` tables.
@@ -169,7 +170,7 @@ def cost_rows():
     """The whole step on this tree and on ``BASES``, alternating (see the module)."""
     from clothtool.sim.model.config import Solver
 
-    other = "multigrid" if Solver().preconditioner == "amg" else "amg"
+    others = [name for name in ("multigrid", "amg", "hybrid") if name != Solver().preconditioner]
     runs = {}
     with tempfile.TemporaryDirectory() as tmp:
         trees = {"this": ROOT}
@@ -181,8 +182,8 @@ def cost_rows():
                 trees[rev].mkdir()
                 subprocess.run(["tar", "-x", "-C", str(trees[rev])], input=archive.stdout,
                                check=True)
-        cases = [("this", "defaults", None), ("this", f"preconditioner: {other}",
-                                               {"preconditioner": other})]
+        cases = [("this", "defaults", None)] + [("this", f"preconditioner: {name}",
+                                                  {"preconditioner": name}) for name in others]
         cases += [(rev, "defaults", None) for rev in trees if rev != "this"]
         for _ in range(COST_REPEAT):
             for n in SIZES:

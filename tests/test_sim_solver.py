@@ -284,7 +284,7 @@ def test_multigrid_preconditioner_is_symmetric_positive_definite_on_the_free_spa
     assert np.linalg.eigvalsh(free_space.T @ b @ free_space).min() > 0
 
 
-@pytest.mark.parametrize("preconditioner", ["jacobi", "multigrid", "amg"])
+@pytest.mark.parametrize("preconditioner", ["jacobi", "multigrid", "amg", "hybrid"])
 def test_filtered_pcg_with_each_preconditioner_matches_a_direct_solve(preconditioner):
     model, blocks, matrix, kind = constrained_system()
     constraints = ConstraintFilter(kind)
@@ -304,6 +304,29 @@ def test_filtered_pcg_with_each_preconditioner_matches_a_direct_solve(preconditi
         jacobi_its, _ = filtered_pcg(blocks, b, np.zeros_like(b), constraints, 1e-10, 5000,
                                      BlockJacobi(model.n_vertices))
         assert its < jacobi_its
+
+
+def test_hybrid_solves_tight_with_amg_and_loose_with_multigrid():
+    """``hybrid`` is, solve by solve, ``amg`` at a tolerance of 1e-4 or finer and ``multigrid``
+    above it, bit for bit; its prolongators come from the positions its Newton minimisation
+    started at, even when they are built later, at the first tight solve."""
+    model, blocks, _, kind = constrained_system()
+    constraints = ConstraintFilter(kind)
+    rng = np.random.default_rng(7)
+    b = rng.normal(size=(model.n_vertices, 3))
+    start = model.mesh.positions * 1.02
+    hybrid = make_preconditioner("hybrid", model.pattern, model.faces)
+    x = start.copy()
+    hybrid.update(x, constraints)
+    x += 0.01  # Newton moves on before the first tight solve
+    for tol, alone in [(1e-2, "multigrid"), (1e-4, "amg"), (1e-6, "amg"), (1e-3, "multigrid")]:
+        other = make_preconditioner(alone, model.pattern, model.faces)
+        other.update(start, constraints)
+        ours, theirs = np.zeros_like(b), np.zeros_like(b)
+        got = filtered_pcg(blocks, b, ours, constraints, tol, 5000, hybrid)
+        expected = filtered_pcg(blocks, b, theirs, constraints, tol, 5000, other)
+        assert got == expected
+        np.testing.assert_array_equal(ours, theirs)
 
 
 def test_pinned_components_keep_their_prescribed_motion():

@@ -141,7 +141,9 @@ def test_strain_limiting_bounds_the_edges():
     assert limited[-1] - 1.05 < (limited[0] - 1.05) / 4
 
 
-METHODS = [("implicit", {}), ("implicit", {"preconditioner": "amg"}), ("mass-spring", {}), ("pbd", {}), ("pbd", {"pbd_variant": "jacobi"}),
+METHODS = [("implicit", {}), ("implicit", {"preconditioner": "amg"}),
+           ("implicit", {"preconditioner": "hybrid"}), ("mass-spring", {}), ("pbd", {}),
+           ("pbd", {"pbd_variant": "jacobi"}),
            ("pbd", {"strain_limit": 0.1}), ("xpbd", {}), ("projective", {}), ("explicit", {})]
 
 

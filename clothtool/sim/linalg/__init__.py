@@ -13,7 +13,7 @@
   (block Gauss–Seidel, block inverses, dense Cholesky) and
   :mod:`~clothtool.sim.linalg.multilevel` (the levels and the cycle);
 - :mod:`~clothtool.sim.linalg.pcg`: filtered PCG, block Jacobi and the choice between the
-  preconditioners.
+  preconditioners (``hybrid``: ``amg`` or ``multigrid`` by each solve's tolerance).
 
 ``blocks``, ``filter``, ``pairs`` and ``aggregation`` import nothing of the others; ``pcg``
 imports the preconditioners.

@@ -39,7 +39,7 @@ BEND_MODELS = ("hessian", "dihedral", "quadratic")
 MEMBRANE_MODELS = ("triangle", "nodal", "edge")
 DAMPING_MODELS = ("strain", "frozen")  # the strains' change potential, or βK(x_n) frozen
 METHODS = tuple(methods.METHODS)
-PRECONDITIONERS = ("jacobi", "multigrid", "amg")
+PRECONDITIONERS = ("jacobi", "multigrid", "amg", "hybrid")
 PBD_VARIANTS = ("gauss-seidel", "jacobi", "hierarchical")
 INTEGRATORS = ("bdf2", "euler")
 OUTPUT_FORMATS = ("ply", "obj", "mdd", "usd")
@@ -681,7 +681,8 @@ class Solver(Section):
     step is a PCG solve whose relative residual ``tolerance`` is the finest it asks
     for (later Newton steps ask for less: Eisenstat–Walker); ``preconditioner`` is
     block Jacobi or an aggregation multigrid V-cycle (``amg``: its coarse spaces carry
-    cloth's near-null modes, rebuilt from the positions at every step). ``newton_iterations: 1`` is
+    cloth's near-null modes, rebuilt from the positions at every step; ``hybrid``: ``amg`` for
+    the tight solves, ``multigrid`` for the loose ones). ``newton_iterations: 1`` is
     Baraff–Witkin's linearised step. A step whose speed exceeds ``max_speed`` (m/s)
     counts as a blow-up. ``friction_velocity`` ε_v (m/s) is the sliding speed below which
     contact friction holds (it creeps at most at ε_v where Coulomb's law sticks).
@@ -714,8 +715,10 @@ class Solver(Section):
     max_iterations: int = setting(500, integer(minimum=1), "PCG iterations per Newton step")
     preconditioner: str = setting("multigrid", choice(PRECONDITIONERS),
                                   "`multigrid` (aggregation of translations), `amg` (aggregation "
-                                  "of each aggregate's rigid motions and in-plane shears) or "
-                                  "`jacobi` (block Jacobi)")
+                                  "of each aggregate's rigid motions and in-plane shears), "
+                                  "`hybrid` (`amg` for the solves to a relative residual of 1e-4 "
+                                  "or finer, `multigrid` for the looser ones) or `jacobi` (block "
+                                  "Jacobi)")
     newton_iterations: int = setting(20, integer(minimum=1),
                                      "Newton steps per solver step, at most (1 = "
                                      "Baraff–Witkin's linearised step)")
