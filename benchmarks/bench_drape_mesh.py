@@ -15,7 +15,8 @@ and each mesh's change from one spacing to the next.
 The variants (``--full``): the static finish with the projected Hessian alone
 (``exact_finish=False``, which stalls short of rest on some 6 and 4 mm discs), the plate
 without its correction (``plate_correction: false``),
-``bend_model: dihedral``, ``membrane_model: nodal``, and the disc resting on the pedestal as
+``bend_model: dihedral``, ``membrane_model: nodal`` and ``edge`` (each also with the plate's
+correction), and the disc resting on the pedestal as
 a barrier collider (its centre pinned) instead of clamped, with friction 0.5, with friction
 0 and with the contact distance (``collision_margin``) halved.
 """
@@ -41,6 +42,11 @@ VARIANTS = {DEFAULTS: {},
             "plate_correction: true": {"plate_correction": True},
             "bend_model: dihedral": {"bend_model": "dihedral"},
             "membrane_model: nodal": {"membrane_model": "nodal"},
+            "membrane_model: nodal, plate_correction: true": {"membrane_model": "nodal",
+                                                              "plate_correction": True},
+            "membrane_model: edge": {"membrane_model": "edge"},
+            "membrane_model: edge, plate_correction: true": {"membrane_model": "edge",
+                                                             "plate_correction": True},
             "on a support, friction 0.5": {"support": (0.5, 0.002)},
             "on a support, friction 0": {"support": (0.0, 0.002)},
             "on a support, friction 0.5, contact distance 1 mm": {"support": (0.5, 0.001)}}

@@ -101,7 +101,7 @@ def test_pure_stretch_membrane_hessian_with_shear_is_the_derivative_of_its_gradi
     assert rel(dense(matrix), fd_gradient(gradient_of(energy), x)) < 1e-6
 
 
-@pytest.mark.parametrize("membrane", ["triangle", "nodal"])
+@pytest.mark.parametrize("membrane", ["triangle", "nodal", "edge"])
 def test_the_exact_membrane_hessian_is_the_derivative_of_its_gradient_anywhere(membrane):
     """With the projection off (statics' ``exact_hessian``) on a compressed, sheared sheet:
     the derivative of the gradient, indefinite; with it back on, PSD again."""

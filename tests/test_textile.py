@@ -393,7 +393,8 @@ def test_mixed_voronoi_areas_sum_to_the_area():
 @pytest.mark.parametrize("kind,divisions,membrane", [
     ("grid", 20, "triangle"), ("across", 20, "triangle"), ("rot45", 20, "triangle"),
     ("delaunay", 20, "triangle"), ("delaunay", 40, "triangle"), ("grid", 20, "nodal"),
-    ("rot45", 20, "nodal"), ("delaunay", 20, "nodal")])
+    ("rot45", 20, "nodal"), ("delaunay", 20, "nodal"), ("rot45", 20, "edge"),
+    ("delaunay", 20, "edge")])
 def test_cantilever_droops_as_the_elastica(tmp_path, kind, divisions, membrane, overhang):
     """ASTM D1388: a 0.1 m strip, 0.2 kg/m², bending length 0.1/overhang m; tip drop within 3 %
     (with either membrane model)."""
@@ -409,7 +410,7 @@ def test_cantilever_droops_as_the_elastica(tmp_path, kind, divisions, membrane, 
     assert drop == pytest.approx(elastica_tip_drop(length, bend, density), rel=0.03)
 
 
-@pytest.mark.parametrize("membrane", ["triangle", "nodal"])
+@pytest.mark.parametrize("membrane", ["triangle", "nodal", "edge"])
 @pytest.mark.parametrize("direction", ["warp", "weft", "bias"])
 def test_hanging_strip_lengthens_by_rho_g_l2_over_2k(tmp_path, direction, membrane):
     """A strip 40 widths long hung by its top edge; along the bias the clamp holds back the

@@ -92,11 +92,12 @@ def frame_cells(faces, corner_uv):
 
 def nodal_pairs(ptr, index):
     """(P, 2) vertex pairs (j, k) of every stencil, row-major per stencil (the Hessian blocks)."""
-    pairs = []
-    for v in range(len(ptr) - 1):
-        s = index[ptr[v]:ptr[v + 1]]
-        pairs.append(np.stack([np.repeat(s, len(s)), np.tile(s, len(s))], axis=1))
-    return np.concatenate(pairs).astype(np.int64) if pairs else np.zeros((0, 2), np.int64)
+    size = np.diff(ptr)
+    count = size * size
+    stencil = np.repeat(np.arange(len(size)), count)
+    q = np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count)
+    row, col = q // size[stencil], q % size[stencil]
+    return np.stack([index[ptr[stencil] + row], index[ptr[stencil] + col]], axis=1).astype(np.int64)
 
 
 @njit(cache=True)

@@ -14,6 +14,8 @@ reaches every method built on it.
 - :class:`NodalMembrane`: the stretch density on each vertex's smoothed metric FᵀF
   (node-based smoothing, :mod:`clothtool.sim.energies.membrane_nodal`; ``material.membrane_model:
   nodal``, beside a shear-only :class:`Membrane`);
+- :class:`EdgeMembrane`: stretch and shear on each edge's smoothed metric (edge-based
+  smoothing, :mod:`clothtool.sim.energies.membrane_edge`; ``material.membrane_model: edge``);
 - :class:`PlateBending`, :class:`DihedralBending`, :class:`QuadraticBending`: the
   ``material.bend_model`` choices (:mod:`clothtool.sim.energies.plate`, :mod:`clothtool.sim.energies.bending`);
 - :class:`Stitch`: W = ½ Σ_s k_s ‖x_a − x_b‖², seam pairs pulled together while a garment
@@ -27,6 +29,7 @@ from clothtool.sim.energies.bending import (dihedral_assemble, dihedral_total_en
                                    quadratic_gradient)
 from clothtool.sim.linalg.blocks import scatter_blocks
 from clothtool.sim.energies.membrane import membrane_assemble, membrane_total_energy
+from clothtool.sim.energies.membrane_edge import edge_operator
 from clothtool.sim.energies.membrane_nodal import nodal_assemble, nodal_energy, nodal_operator, nodal_pairs
 from clothtool.sim.energies.plate import hessian_gradient
 
@@ -96,6 +99,18 @@ class NodalMembrane(Term):
     def assemble(self, x, grad, values):
         return nodal_assemble(x, self.faces, self.dr_inv, *self.operator, self.project, self.slots,
                               grad, values)
+
+
+class EdgeMembrane(NodalMembrane):
+    """Σ_e A_e Ψ(C_e), C_e the metric FᵀF averaged over edge e's third of its two triangles
+    (``cells`` (M, 3): each triangle edge's cell, ``frames``: their unfolded frames or None,
+    :mod:`~clothtool.sim.energies.membrane_edge`); stretch and shear, stencils the edges'
+    flaps."""
+
+    def __init__(self, faces, dr_inv, area, n, stretch, shear, cells, frames=None):
+        self.faces, self.dr_inv, self.operator = edge_operator(faces, dr_inv, area, n, stretch,
+                                                               shear, cells, frames)
+        self.elements = nodal_pairs(*self.operator[:2])
 
 
 class PlateBending(Term):

@@ -23,8 +23,8 @@ from clothtool.sim.model.methods import barrier_contact, strain_damped
 from clothtool.sim.model.model import Model
 from clothtool.sim.model.motion import resolve_pin_entries
 from clothtool.sim.model.schema import suggest
-from clothtool.sim.energies.terms import (DihedralBending, Membrane, NodalMembrane, PlateBending,
-                                 QuadraticBending, Stitch, Term)
+from clothtool.sim.energies.terms import (DihedralBending, EdgeMembrane, Membrane, NodalMembrane,
+                                          PlateBending, QuadraticBending, Stitch, Term)
 
 DEGENERATE = 1e-12  # rest triangle area relative to its squared longest edge
 
@@ -264,10 +264,10 @@ class ModelBuilder:
                 sharpen=SHARPEN if self.material.plate_correction else 0.0)
             plate = _csr(q if correction is None else q + correction)
             plate_matrix = None if correction is None else _csr(q)
-        membrane_model, cells = self._membrane_model()
+        membrane_model, cells, frames = self._membrane_model()
         terms = _elastic_terms(faces, dr_inv, self.area, self.tri_stretch, self.tri_shear,
                                bend_model, plate, n, hinge, rest_angle, coef, weights,
-                               membrane_model, plate_matrix, cells)
+                               membrane_model, plate_matrix, cells, frames)
         if len(self.stitches):
             terms.append(Stitch(self.stitches, self.stitch_stiffness.copy()))
         beta = self.tri_damping
@@ -302,7 +302,7 @@ class ModelBuilder:
                                            self.tri_shear * beta, bend_model, damped_plate, n,
                                            hinge, rest_angle,
                                            coef * beta[hinge_faces].mean(axis=1), weights,
-                                           membrane_model, cells=cells)
+                                           membrane_model, cells=cells, frames=frames)
             damping_constant = _bind(damping_terms, pattern)
         hinged = bend_model in ("dihedral", "quadratic")
         return Model(
@@ -354,23 +354,32 @@ class ModelBuilder:
         return np.sqrt(self.tri_bend.prod(axis=1)), float(ratio[0])
 
     def _membrane_model(self):
-        """(``material.membrane_model``, the nodal cells): ``nodal`` on the implicit method
-        wherever the triangles' material frames meet at a vertex: a pattern per vertex (uv, or
-        a flat mesh's own plane), or per corner (a garment's panels: a seam vertex has a cell
-        in each panel, :func:`~clothtool.sim.energies.membrane_nodal.frame_cells`); else
-        ``triangle`` (a mesh resting curved without uv, the other methods, no membrane)."""
+        """(``material.membrane_model``, its cells, the edge cells' frames) on the implicit
+        method. ``nodal`` wherever the triangles' material frames meet at a vertex: a pattern
+        per vertex (uv, or a flat mesh's own plane), or per corner (a garment's panels: a seam
+        vertex has a cell in each panel, :func:`~clothtool.sim.energies.membrane_nodal.
+        frame_cells`); ``edge`` on any mesh (:func:`~clothtool.sim.energies.membrane_edge.
+        edge_cells`, unfolded frames where there is no pattern); else ``triangle`` (a mesh
+        resting curved without uv under ``nodal``, the other methods, no membrane)."""
+        from clothtool.sim.energies.membrane_edge import edge_cells, unfolded_frames
         from clothtool.sim.energies.membrane_nodal import frame_cells
 
-        mesh = self.mesh
+        mesh, model = self.mesh, self.material.membrane_model
         method = None if self.config is None else self.config.solver.method
-        if (self.material.membrane_model != "nodal" or method not in (None, "implicit")
+        if (model == "triangle" or method not in (None, "implicit")
                 or not (np.any(self.tri_stretch[:, :2] > 0.0) or np.any(self.tri_shear > 0.0))):
-            return "triangle", None
+            return "triangle", None, None
+        pattern = mesh.uv is not None or plane_pattern(mesh.rest3d) is not None
+        if model == "edge":
+            cells = edge_cells(mesh.faces, mesh.corner_uv)
+            if mesh.corner_uv is not None or pattern:
+                return "edge", cells, None
+            return "edge", cells, unfolded_frames(mesh.faces, self.dr, cells)
         if mesh.corner_uv is not None:
-            return "nodal", frame_cells(mesh.faces, mesh.corner_uv)
-        if mesh.uv is not None or plane_pattern(mesh.rest3d) is not None:
-            return "nodal", None
-        return "triangle", None
+            return "nodal", frame_cells(mesh.faces, mesh.corner_uv), None
+        if pattern:
+            return "nodal", None, None
+        return "triangle", None, None
 
     def _bending(self):
         """(model, hinges, rest angles, c_h, quadratic weights): c_h = k_b ‖ē‖²/(2(Ā_k + Ā_l)),
@@ -423,13 +432,16 @@ def _csr(q):
 
 
 def _elastic_terms(faces, dr_inv, area, stretch, shear, bend_model, plate, n, hinge, rest_angle,
-                   coef, weights, membrane_model="triangle", plate_matrix=None, cells=None):
+                   coef, weights, membrane_model="triangle", plate_matrix=None, cells=None,
+                   frames=None):
     """The membrane and bending terms (none whose stiffness is zero); ``plate_matrix``: the
     plate's Hessian in the solver's matrix when it is not ``plate`` itself (the corrected
     plate: :class:`~clothtool.sim.energies.terms.PlateBending`); ``cells``: the nodal
-    membrane's cells (None: one per vertex)."""
+    membrane's cells (None: one per vertex) or the edge membrane's, ``frames`` its frames."""
     terms = []
-    if membrane_model == "nodal":  # stretch on the vertices' smoothed metric, shear per triangle
+    if membrane_model == "edge":  # stretch and shear on the edges' smoothed metric
+        terms.append(EdgeMembrane(faces, dr_inv, area, n, stretch, shear, cells, frames))
+    elif membrane_model == "nodal":  # stretch on the vertices' smoothed metric, shear per triangle
         if np.any(stretch[:, :2] > 0.0):
             terms.append(NodalMembrane(faces, dr_inv, area, n, stretch, np.zeros_like(shear),
                                        cells))

@@ -36,7 +36,7 @@ __all__ = ["load_config", "resolved_yaml", "as_dict", "Config", "SECTIONS", "COL
 
 PLANES = ("xy", "xz", "yz")
 BEND_MODELS = ("hessian", "dihedral", "quadratic")
-MEMBRANE_MODELS = ("triangle", "nodal")
+MEMBRANE_MODELS = ("triangle", "nodal", "edge")
 DAMPING_MODELS = ("strain", "frozen")  # the strains' change potential, or βK(x_n) frozen
 METHODS = tuple(methods.METHODS)
 PRECONDITIONERS = ("jacobi", "multigrid", "amg", "hybrid")
@@ -229,7 +229,9 @@ class Material(Section):
     ``membrane_model``: stretch and shear per ``triangle`` (linear elements), or ``nodal``:
     warp and weft stretch on each vertex's smoothed metric FᵀF (which locks less when the
     sheet bends off the mesh's lines) and shear per triangle (implicit method; the others
-    and a mesh resting curved without uv keep ``triangle``).
+    and a mesh resting curved without uv keep ``triangle``), or ``edge``: stretch and shear
+    on each edge's smoothed metric, on any mesh (implicit method; the others keep
+    ``triangle``).
     ``preset`` (a measured fabric, :mod:`clothtool.fabrics`) and ``kes`` (KES-F values,
     :mod:`clothtool.lab_units`) fill the keys the section does not give; ``kes`` wins
     over ``preset``.
@@ -293,7 +295,9 @@ class Material(Section):
                                   "Any mesh that rests flat, with uv or without (its own plane), "
                                   "garment panels included (a seam vertex has a cell in each "
                                   "panel); a mesh resting curved without uv and the methods "
-                                  "other than `implicit` keep `triangle`")
+                                  "other than `implicit` keep `triangle`. `edge`: stretch and "
+                                  "shear on each edge's smoothed metric (its two triangles'), "
+                                  "on any mesh, uv or none, seams included (implicit method)")
     preset: str | None = setting(None, one_word,
                                  "a measured fabric (Wang et al. 2011, as ARCSim ships them): "
                                  "its density, stretch, shear and bend fill the keys not given "

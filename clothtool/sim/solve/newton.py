@@ -165,6 +165,10 @@ class NewtonIntegrator(Integrator):
         self.matrix = BlockMatrix(pattern)
         self._grad = np.zeros((n, 3))
         self._free_mass = float(np.sum(model.mass[model.free]))
+        # solver.stiffness_continuation: auto: k the stiffest membrane (stretch or shear, N/m),
+        # m the free vertices' mean mass (kg), fixed for the run
+        self._stiffest = max(float(model.tri_stretch[:, :2].max()), float(model.tri_shear.max()))
+        self._mean_free_mass = self._free_mass / max(int(np.count_nonzero(model.free)), 1)
         self.preconditioner = make_preconditioner(
             solver.preconditioner if self.multigrid else "jacobi", pattern, model.faces)
         self.terms = self._terms(model, solver, h, pattern)
@@ -255,7 +259,8 @@ class NewtonIntegrator(Integrator):
         if self.bdf2:
             h_eff = 2.0 * h / 3.0
             base = (4.0 * state.x - state.x_prev) / 3.0
-            return self.stage(state, h, h_eff, base, base + h_eff * ((4.0 * state.v - state.v_prev) / 3.0),
+            target = base + h_eff * ((4.0 * state.v - state.v_prev) / 3.0)
+            return self.stage(state, h, h_eff, base, target,
                               ((4.0 / 3.0, state.x), (-1.0 / 3.0, state.x_prev)))
         return self.stage(state, h, h, state.x, state.x + h * state.v, ((1.0, state.x),))
 
@@ -310,10 +315,11 @@ class NewtonIntegrator(Integrator):
         """Newton's minimisation of the stage's incremental potential Σ_k E_k (see the
         module docstring) to ``tol`` (default ``solver.newton_tolerance``): its solution x;
         the counts go into ``report``. With ``solver.stiffness_continuation`` n (``auto``:
-        :meth:`continuation_levels`), the membrane 10ⁿ, …, 10× softer first, each solve from the last's solution; with
-        ``solver.continuation_after`` k too, only when Newton alone has stalled in its first k
-        steps (unconverged, ``STALLED`` of them bound by the stiffness), again from the stage's
-        start; otherwise Newton goes on alone up to ``solver.newton_iterations``."""
+        :meth:`continuation_levels`), the membrane 10ⁿ, …, 10× softer first, each solve from
+        the last's solution; with ``solver.continuation_after`` k too, only when Newton alone
+        has stalled in its first k steps (unconverged, ``STALLED`` of them bound by the
+        stiffness), again from the stage's start; otherwise Newton goes on alone up to
+        ``solver.newton_iterations``."""
         for term in self.terms:
             term.begin(stage)
         x, guess = stage.start, stage.guess
@@ -352,10 +358,7 @@ class NewtonIntegrator(Integrator):
         k·ĥ²/(m·10ⁿ) ≤ ``CONTINUATION_TARGET``, k the stiffest membrane (stretch or shear, N/m),
         m the free vertices' mean mass: Newton's stall on near-inextensible cloth grows with
         the membrane's stiffness over the inertia M/ĥ² it is solved against."""
-        model = self.model
-        k = max(float(model.tri_stretch[:, :2].max()), float(model.tri_shear.max()))
-        mass = self._free_mass / max(int(np.count_nonzero(model.free)), 1)
-        ratio = k * h_eff * h_eff / mass
+        ratio = self._stiffest * h_eff * h_eff / self._mean_free_mass
         return max(0, int(np.ceil(np.log10(ratio / CONTINUATION_TARGET))))
 
     def _newton(self, stage, x, dx, report, tol, cap=None):
