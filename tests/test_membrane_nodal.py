@@ -3,134 +3,14 @@
 import numpy as np
 import pytest
 from conftest import random_rotation
-from hypothesis import given, settings
-from hypothesis import strategies as st
+from smoothed_membranes import flat, sheet
 
 from clothtool.sim.model.config import load_config
 from clothtool.sim.model.builder import build_model
-from clothtool.sim.linalg.blocks import BlockMatrix, BlockPattern
 from clothtool.sim.energies.membrane import membrane_total_energy
-from clothtool.sim.energies.membrane_nodal import nodal_assemble, nodal_energy, nodal_operator, nodal_pairs
+from clothtool.sim.energies.membrane_nodal import nodal_operator
 from clothtool.sim.energies.terms import NodalMembrane
 from clothtool.sim.textile import disc
-
-KINDS = ["grid", "rot45", "delaunay"]
-
-
-def sheet(kind, stretch=(5000.0, 3000.0, 1.0, 1.0), shear=50.0, radius=0.03, spacing=0.01):
-    """(uv, faces, dr_inv, area, stretch (M, 4), shear (M,)) of a small disc."""
-    uv, faces = disc(radius, spacing, kind, seed=3)
-    p = uv[faces]
-    dr = np.stack([p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]], axis=2)
-    area = 0.5 * np.abs(np.linalg.det(dr))
-    m = len(faces)
-    return (uv, faces, np.linalg.inv(dr), area, np.tile(np.asarray(stretch, float), (m, 1)),
-            np.full(m, float(shear)))
-
-
-def operator(uv, faces, dr_inv, area, stretch, shear):
-    op = (faces, dr_inv) + nodal_operator(faces, dr_inv, area, len(uv), stretch, shear)
-    pairs = nodal_pairs(op[2], op[3])
-    pattern = BlockPattern(len(uv), pairs)
-    return op, pattern, pattern.slots(pairs)[:, 1]
-
-
-def assemble(op, pattern, slots, x, project):
-    grad = np.zeros_like(x)
-    values = pattern.zeros()
-    energy = nodal_assemble(x, *op, project, slots, grad, values)
-    return energy, grad, values
-
-
-def dense(pattern, values):
-    return BlockMatrix(pattern, values).to_scipy().toarray()
-
-
-def random_sheets(max_examples):
-    """A hypothesis test over a seed and a mesh kind."""
-    return lambda test: settings(max_examples=max_examples, deadline=None)(
-        given(seed=st.integers(0, 2**31), kind=st.sampled_from(KINDS))(test))
-
-
-def flat(uv):
-    return np.concatenate([uv, np.zeros((len(uv), 1))], axis=1)
-
-
-@settings(max_examples=6, deadline=None)
-@given(seed=st.integers(0, 2**31), kind=st.sampled_from(KINDS),
-       rest=st.sampled_from([1.0, 0.9]))
-def test_gradient_and_hessian_match_finite_differences(seed, kind, rest):
-    """Central differences of W (gradient) and of ∇W (the unprojected Hessian), in
-compression (rest factor 0.9 less than the stretch) and tension."""
-    uv, faces, dr_inv, area, stretch, shear = sheet(kind, stretch=(5000.0, 3000.0, rest, 1.0))
-    op, pattern, slots = operator(uv, faces, dr_inv, area, stretch, shear)
-    rng = np.random.default_rng(seed)
-    x = flat(uv) @ np.diag([1.05, 0.97, 1.0]).T + 0.002 * rng.standard_normal((len(uv), 3))
-    energy, grad, values = assemble(op, pattern, slots, x, False)
-    assert energy == pytest.approx(nodal_energy(x, *op), rel=1e-14)
-    h = 1e-7
-    num_grad = np.zeros_like(x)
-    num_hess = np.zeros((x.size, x.size))
-    for i in range(len(x)):
-        for p in range(3):
-            up, down = x.copy(), x.copy()
-            up[i, p] += h
-            down[i, p] -= h
-            num_grad[i, p] = (nodal_energy(up, *op) - nodal_energy(down, *op)) / (2 * h)
-            num_hess[:, 3 * i + p] = ((assemble(op, pattern, slots, up, False)[1]
-                                       - assemble(op, pattern, slots, down, False)[1])
-                                      / (2 * h)).ravel()
-    assert np.abs(num_grad - grad).max() <= 1e-7 * np.abs(grad).max()
-    assert np.abs(num_hess - dense(pattern, values)).max() <= 1e-6 * np.abs(num_hess).max()
-
-
-@random_sheets(6)
-def test_projected_hessian_is_psd(seed, kind):
-    uv, faces, dr_inv, area, stretch, shear = sheet(kind)
-    op, pattern, slots = operator(uv, faces, dr_inv, area, stretch, shear)
-    rng = np.random.default_rng(seed)
-    x = flat(uv) @ np.diag([0.9, 1.1, 1.0]).T + 0.003 * rng.standard_normal((len(uv), 3))
-    k = dense(pattern, assemble(op, pattern, slots, x, True)[2])
-    assert np.linalg.eigvalsh(k).min() >= -1e-9 * np.abs(k).max()
-
-
-@random_sheets(10)
-def test_patch_test_an_affine_map_stores_the_constant_strain_energy(seed, kind):
-    """x = A u + c: every C_v is AᵀA, so W = A_total Ψ(A), the triangles' energy, and the
-    interior vertices feel no force."""
-    uv, faces, dr_inv, area, stretch, shear = sheet(kind)
-    op, pattern, slots = operator(uv, faces, dr_inv, area, stretch, shear)
-    rng = np.random.default_rng(seed)
-    a = np.eye(3, 2) + 0.2 * rng.standard_normal((3, 2))
-    x = uv @ a.T + rng.standard_normal(3)
-    energy, grad, _ = assemble(op, pattern, slots, x, True)
-    f0, f1 = a[:, 0], a[:, 1]
-    psi = (0.5 * 5000.0 * (np.linalg.norm(f0) - 1.0) ** 2
-           + 0.5 * 3000.0 * (np.linalg.norm(f1) - 1.0) ** 2 + 0.5 * 50.0 * (f0 @ f1) ** 2)
-    assert energy == pytest.approx(area.sum() * psi, rel=1e-10)
-    assert energy == pytest.approx(membrane_total_energy(x, faces, dr_inv, area, stretch, shear),
-                                   rel=1e-10)
-    boundary = np.zeros(len(uv), bool)
-    edges = np.sort(np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]]), 1)
-    e, count = np.unique(edges, axis=0, return_counts=True)
-    boundary[e[count == 1].ravel()] = True
-    assert np.abs(grad[~boundary]).max() <= 1e-9 * np.abs(grad).max()
-    assert np.abs(grad.sum(axis=0)).max() <= 1e-9 * np.abs(grad).max()
-
-
-@random_sheets(10)
-def test_rigid_motions_change_neither_energy_nor_force_magnitudes(seed, kind):
-    uv, faces, dr_inv, area, stretch, shear = sheet(kind)
-    op, pattern, slots = operator(uv, faces, dr_inv, area, stretch, shear)
-    rng = np.random.default_rng(seed)
-    x = flat(uv) + 0.002 * rng.standard_normal((len(uv), 3))
-    rot = random_rotation(rng)
-    energy, grad, _ = assemble(op, pattern, slots, x, True)
-    moved, moved_grad, _ = assemble(op, pattern, slots, x @ rot.T + rng.standard_normal(3), True)
-    assert moved == pytest.approx(energy, rel=1e-10)
-    assert np.abs(moved_grad - grad @ rot.T).max() <= 1e-9 * np.abs(grad).max()
-    rest = assemble(op, pattern, slots, flat(uv) @ rot.T, True)
-    assert rest[0] == pytest.approx(0.0, abs=1e-18) and np.abs(rest[1]).max() < 1e-12
 
 
 def test_cells_share_out_the_area_and_stencils_are_the_rings():
@@ -227,28 +107,6 @@ def test_a_garments_panels_have_a_cell_each_at_their_seam(tmp_path):
     left_faces = np.all(left[model.faces] | np.isin(model.faces, seam), axis=1)
     expected = 0.5 * 5000.0 * 0.01 ** 2 * model.area[left_faces].sum()
     assert nodal.energy(stretched) == pytest.approx(expected, rel=1e-6)
-
-
-@pytest.mark.parametrize("angle", [10.0, 60.0, 120.0])
-def test_a_sheet_folded_along_a_mesh_line_stores_nothing(angle):
-    """Every triangle moves rigidly, so every C_t and C_v is I (an average of F would be shorter
-    along the fold)."""
-    from clothtool.sim.textile import _criss_cross
-
-    uv, faces = _criss_cross(np.linspace(-0.03, 0.03, 7), np.linspace(-0.02, 0.02, 5))
-    p = uv[faces]
-    dr = np.stack([p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]], axis=2)
-    area = 0.5 * np.abs(np.linalg.det(dr))
-    op, pattern, slots = operator(uv, faces, np.linalg.inv(dr), area,
-                                  np.tile([5000.0, 3000.0, 1.0, 1.0], (len(faces), 1)),
-                                  np.full(len(faces), 50.0))
-    t = np.radians(angle)
-    x = flat(uv)
-    right = uv[:, 0] > 1e-12
-    x[right, 0] = uv[right, 0] * np.cos(t)
-    x[right, 2] = uv[right, 0] * np.sin(t)
-    energy, grad, _ = assemble(op, pattern, slots, x, True)
-    assert energy == pytest.approx(0.0, abs=1e-20) and np.abs(grad).max() < 1e-12
 
 
 def test_other_methods_than_implicit_keep_the_triangle_membrane():
