@@ -94,9 +94,12 @@ def galerkin(row_ptr, col, values, skip, slot_map, mirror, p, out):
         _galerkin(row_ptr, col, values, skip, slot_map, mirror, p, out, 3)
     else:
         _galerkin(row_ptr, col, values, skip, slot_map, mirror, p, out, M)
-    for t in range(out.shape[0]):
-        if mirror[t] > t:
-            out[mirror[t]] = out[t].T
+    for t in range(out.shape[0]):  # scalar loops: an array assignment costs seconds of compilation
+        u = mirror[t]
+        if u > t:
+            for p in range(out.shape[1]):
+                for q in range(out.shape[2]):
+                    out[u, p, q] = out[t, q, p]
 
 
 @njit(cache=True, inline="always")

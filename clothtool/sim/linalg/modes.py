@@ -56,15 +56,18 @@ def node_sums(x, free, agg, nc):
 
 @njit(cache=True)
 def coarser_sums(count, first, second, agg, nc):
-    """The sums of the next level: each aggregate's are the sums of its nodes'."""
+    """The sums of the next level: each aggregate's are the sums of its nodes' (scalar loops: an
+    array expression such as ``f[b] += first[a]`` would cost numba seconds of compilation)."""
     c = np.zeros(nc)
     f = np.zeros((nc, 3))
     s = np.zeros((nc, 3, 3))
     for a in range(count.shape[0]):
         b = agg[a]
         c[b] += count[a]
-        f[b] += first[a]
-        s[b] += second[a]
+        for p in range(3):
+            f[b, p] += first[a, p]
+            for q in range(3):
+                s[b, p, q] += second[a, p, q]
     return c, f, s
 
 

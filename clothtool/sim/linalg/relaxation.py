@@ -167,13 +167,16 @@ def block_inverses(values, diag, skip, out):
         out[i] = 0.0
         if skip[i]:
             continue
-        work[:, :] = values[diag[i]]
+        for p in range(M):  # scalar loops: an array assignment costs seconds of compilation
+            for q in range(M):
+                work[p, q] = values[diag[i], p, q]
         _factor(work, M)
         for c in range(M):  # column c of the inverse: L⁻ᵀ L⁻¹ e_c
             y[:] = 0.0
             y[c] = 1.0
             _substitute(work, y, M)
-            out[i, :, c] = y
+            for p in range(M):
+                out[i, p, c] = y[p]
 
 
 @njit(cache=True)
