@@ -49,6 +49,29 @@ def welded_pair(nx=5, ny=7, width=0.2, height=0.3, shift=(5.0, 2.0)):
             right_ids[:, 0].copy())
 
 
+
+
+def welded_pair_model(folder, material):
+    """(the model of :func:`welded_pair` written as an OBJ in ``folder``, with the config's
+    ``material`` section, its seam vertices)."""
+    from clothtool.sim.model.builder import build_model
+    from clothtool.sim.model.config import load_config
+
+    x, lf, rf, luv, ruv, seam = welded_pair()
+    path = write_obj(folder / "pair.obj", x, [("left", lf, luv), ("right", rf, ruv)])
+    return build_model(load_config({"mesh": {"obj": str(path)}, "material": material})), seam
+
+def stretched_and_folded(positions):
+    """A welded pair's positions two ways: (left mask, the left panel (x < 0) stretched 1 %
+    along x with the right one at rest, the right panel folded 1 rad about the seam x = 0)."""
+    left = positions[:, 0] < -1e-9
+    stretched = positions.copy()
+    stretched[left, 0] *= 1.01
+    folded = positions.copy()
+    folded[~left, 2] = folded[~left, 0] * np.sin(1.0)
+    folded[~left, 0] *= np.cos(1.0)
+    return left, stretched, folded
+
 def apart_pair(nx=5, ny=7, width=0.2, height=0.3, gap=0.02):
     """Two separate panels in the xy plane, ``gap`` apart along x: (positions, left faces,
     right faces, left corner uv, right corner uv, a, b) with a the left panel's right edge

@@ -50,6 +50,12 @@ def edge_system(uv, faces, dr_inv, area, stretch, shear, frames=None):
 SYSTEMS = {"nodal": nodal_system, "edge": edge_system}
 
 
+def sheet_system(membrane, kind, **sheet_args):
+    """(the :func:`sheet` of ``kind``, the (operator, pattern, slots) of ``membrane`` on it)."""
+    mesh = sheet(kind, **sheet_args)
+    return mesh, SYSTEMS[membrane](*mesh)
+
+
 def assemble(op, pattern, slots, x, project):
     """(energy, gradient, matrix values) at x."""
     grad = np.zeros_like(x)

@@ -135,24 +135,16 @@ def test_a_garments_panels_have_a_cell_each_at_their_seam(tmp_path):
     """Two panels welded along a seam, each with its own pattern (one turned a quarter): a
     seam edge has a cell in each panel; stretching the left panel 1 % along its warp stores
     the triangle membrane's energy, and folding the garment along the seam stores nothing."""
-    from garment_meshes import welded_pair, write_obj
+    from garment_meshes import stretched_and_folded, welded_pair_model
 
-    x, lf, rf, luv, ruv, seam = welded_pair()
-    path = write_obj(tmp_path / "pair.obj", x, [("left", lf, luv), ("right", rf, ruv)])
-    model = build_model(load_config({"mesh": {"obj": str(path)},
-                                     "material": {"membrane_model": "edge"}}))
+    model, seam = welded_pair_model(tmp_path, {"membrane_model": "edge"})
     term = next(t for t in model.terms if isinstance(t, EdgeMembrane))
     cells = term.operator[6]  # the cell areas
     edges = np.unique(np.sort(np.stack([model.faces, np.roll(model.faces, -1, axis=1)], axis=2),
                               axis=2).reshape(-1, 2), axis=0)
     assert len(cells) == len(edges) + len(seam) - 1
     assert cells.sum() == pytest.approx(model.area.sum(), rel=1e-12)
-    left = model.mesh.positions[:, 0] < -1e-9
-    stretched = model.mesh.positions.copy()
-    stretched[left, 0] *= 1.01
-    folded = model.mesh.positions.copy()
-    folded[~left, 2] = folded[~left, 0] * np.sin(1.0)
-    folded[~left, 0] *= np.cos(1.0)
+    _, stretched, folded = stretched_and_folded(model.mesh.positions)
     assert term.energy(folded) == pytest.approx(0.0, abs=1e-18)
     assert term.energy(stretched) == pytest.approx(
         membrane_total_energy(stretched, model.faces, model.dr_inv, model.area,

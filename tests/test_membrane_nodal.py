@@ -86,23 +86,15 @@ def test_a_garments_panels_have_a_cell_each_at_their_seam(tmp_path):
     seam vertex has a cell in each panel, so each panel's metric is its own; stretching both
     panels 1 % along their own warp stores the triangle membrane's energy (an affine map of
     each pattern), and folding the garment along the seam stores nothing."""
-    from garment_meshes import welded_pair, write_obj
+    from garment_meshes import stretched_and_folded, welded_pair_model
 
-    x, lf, rf, luv, ruv, seam = welded_pair()
-    path = write_obj(tmp_path / "pair.obj", x, [("left", lf, luv), ("right", rf, ruv)])
-    model = build_model(load_config({"mesh": {"obj": str(path)},
-                                     "material": {"membrane_model": "nodal"}}))
+    model, seam = welded_pair_model(tmp_path, {"membrane_model": "nodal"})
     nodal = next(t for t in model.terms if isinstance(t, NodalMembrane))
     cells = nodal.operator[6]  # the cell areas
     assert len(cells) == model.n_vertices + len(seam)
     assert cells.sum() == pytest.approx(model.area.sum(), rel=1e-12)
     # the left panel (x < 0) stretched 1 % along its warp, x; the right one as it rests
-    left = model.mesh.positions[:, 0] < -1e-9
-    stretched = model.mesh.positions.copy()
-    stretched[left, 0] *= 1.01
-    folded = model.mesh.positions.copy()
-    folded[~left, 2] = folded[~left, 0] * np.sin(1.0)
-    folded[~left, 0] *= np.cos(1.0)
+    left, stretched, folded = stretched_and_folded(model.mesh.positions)
     assert nodal.energy(folded) == pytest.approx(0.0, abs=1e-18)
     left_faces = np.all(left[model.faces] | np.isin(model.faces, seam), axis=1)
     expected = 0.5 * 5000.0 * 0.01 ** 2 * model.area[left_faces].sum()

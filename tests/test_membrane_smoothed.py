@@ -8,7 +8,7 @@ from conftest import random_rotation
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from smoothed_membranes import (KINDS, STRETCH, SYSTEMS, assemble, boundary_vertices, dense,
-                                flat, random_sheets, sheet)
+                                flat, random_sheets, sheet_system)
 
 from clothtool.sim.energies.membrane import membrane_total_energy
 from clothtool.sim.energies.membrane_nodal import nodal_energy
@@ -23,8 +23,8 @@ MEMBRANES = pytest.mark.parametrize("membrane", sorted(SYSTEMS))
 def test_gradient_and_hessian_match_finite_differences(membrane, seed, kind, rest):
     """Central differences of W (gradient) and of ∇W (the unprojected Hessian), stretch and
     shear, in compression (rest factor 0.9 less than the stretch) and tension."""
-    uv, faces, dr_inv, area, stretch, shear = sheet(kind, stretch=(5000.0, 3000.0, rest, 1.0))
-    op, pattern, slots = SYSTEMS[membrane](uv, faces, dr_inv, area, stretch, shear)
+    (uv, *_), (op, pattern, slots) = sheet_system(membrane, kind,
+                                                  stretch=(5000.0, 3000.0, rest, 1.0))
     rng = np.random.default_rng(seed)
     x = flat(uv) @ np.diag([1.05, 0.97, 1.0]).T + 0.002 * rng.standard_normal((len(uv), 3))
     x[:, 1] += 0.05 * x[:, 0]  # sheared
@@ -49,8 +49,7 @@ def test_gradient_and_hessian_match_finite_differences(membrane, seed, kind, res
 @MEMBRANES
 @random_sheets(6)
 def test_projected_hessian_is_psd(membrane, seed, kind):
-    uv, faces, dr_inv, area, stretch, shear = sheet(kind)
-    op, pattern, slots = SYSTEMS[membrane](uv, faces, dr_inv, area, stretch, shear)
+    (uv, *_), (op, pattern, slots) = sheet_system(membrane, kind)
     rng = np.random.default_rng(seed)
     x = flat(uv) @ np.diag([0.9, 1.1, 1.0]).T + 0.003 * rng.standard_normal((len(uv), 3))
     k = dense(pattern, assemble(op, pattern, slots, x, True)[2])
@@ -62,8 +61,7 @@ def test_projected_hessian_is_psd(membrane, seed, kind):
 def test_patch_test_an_affine_map_stores_the_constant_strain_energy(membrane, seed, kind):
     """x = A u + c: every cell's metric is AᵀA, so W = A_total Ψ(A), the triangles' energy,
     and the interior vertices feel no force."""
-    uv, faces, dr_inv, area, stretch, shear = sheet(kind)
-    op, pattern, slots = SYSTEMS[membrane](uv, faces, dr_inv, area, stretch, shear)
+    (uv, faces, dr_inv, area, stretch, shear), (op, pattern, slots) = sheet_system(membrane, kind)
     rng = np.random.default_rng(seed)
     a = np.eye(3, 2) + 0.2 * rng.standard_normal((3, 2))
     x = uv @ a.T + rng.standard_normal(3)
@@ -82,8 +80,7 @@ def test_patch_test_an_affine_map_stores_the_constant_strain_energy(membrane, se
 @MEMBRANES
 @random_sheets(10)
 def test_rigid_motions_change_neither_energy_nor_force_magnitudes(membrane, seed, kind):
-    uv, faces, dr_inv, area, stretch, shear = sheet(kind)
-    op, pattern, slots = SYSTEMS[membrane](uv, faces, dr_inv, area, stretch, shear)
+    (uv, *_), (op, pattern, slots) = sheet_system(membrane, kind)
     rng = np.random.default_rng(seed)
     x = flat(uv) + 0.002 * rng.standard_normal((len(uv), 3))
     rot = random_rotation(rng)
