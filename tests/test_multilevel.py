@@ -240,6 +240,35 @@ def test_sweeps_are_block_gauss_seidel(b):
     np.testing.assert_allclose(res.ravel(), r.ravel() - a @ got.ravel(), atol=1e-10)
 
 
+def test_fine_sweeps_subtract_blocks_in_stream_order():
+    """The fine sweeps' floating-point order, bit for bit: the forward sweep subtracts a row's
+    blocks first to last, the backward one last to first (one descending stream), each block's
+    product summed over its columns in order; single-precision blocks in double arithmetic."""
+    rng = np.random.default_rng(7)
+    x, faces, _ = sheet(5)
+    pattern = BlockPattern(len(x), faces)
+    n = len(x)
+    _, blocks = random_block_matrix(pattern.row_ptr, pattern.col, 3, rng)
+    single = blocks.astype(np.float32)
+    inv = rng.normal(size=(n, 3, 3))
+    r, x0 = rng.normal(size=(n, 3)), rng.normal(size=(n, 3))
+    for forward in (True, False):
+        expected = x0.copy()
+        for i in (range(n) if forward else range(n - 1, -1, -1)):
+            slots = [s for s in range(pattern.row_ptr[i], pattern.row_ptr[i + 1])
+                     if s != pattern.diag[i]]
+            t = [float(v) for v in r[i]]
+            for s in (slots if forward else slots[::-1]):
+                a, xj = single[s].astype(np.float64), expected[pattern.col[s]]
+                for p in range(3):
+                    t[p] -= a[p, 0] * xj[0] + a[p, 1] * xj[1] + a[p, 2] * xj[2]
+            d = inv[i]
+            expected[i] = [d[p, 0] * t[0] + d[p, 1] * t[1] + d[p, 2] * t[2] for p in range(3)]
+        got = x0.copy()
+        gauss_seidel3(pattern.row_ptr, pattern.col, pattern.diag, single, inv, r, got, forward)
+        assert np.array_equal(got, expected)
+
+
 def test_block_inverses_keep_to_the_supported_modes():
     """A coarse diagonal block whose node has modes without support (zero rows and columns, an
     aggregate of two vertices has no shear) is inverted on the rest, finite and symmetric."""
