@@ -231,8 +231,8 @@ def test_sweeps_are_block_gauss_seidel(b):
         np.testing.assert_allclose(got.ravel(), expected, rtol=1e-10, atol=1e-12)
     got, res = np.zeros((n, b)), np.zeros((n, b))
     if b == 3:
-        forward_from_zero3(pattern.row_ptr, pattern.col, pattern.diag, blocks, blocks, inv, r,
-                           got, res)
+        forward_from_zero3(pattern.row_ptr, pattern.col, pattern.diag, blocks,
+                           blocks[pattern.diag], inv, r, got, res)
     else:
         forward_from_zero(pattern.row_ptr, pattern.col, pattern.diag, blocks, blocks, inv, r,
                           got, res)

@@ -107,12 +107,14 @@ class ModeMultigrid:
         self.skip = [np.zeros(s, dtype=np.bool_) for s in sizes]
         self.fine = np.zeros((len(pattern.col), 3, 3), dtype=smoother)
         self.fine_mirror = transposes(pattern.row_ptr, pattern.col)
+        self.diagonal = np.zeros((pattern.n, 3, 3))  # the fine diagonal blocks, one after another
         self.first = np.zeros((self.block_off[1], M, M), dtype=smoother)  # first coarse level
         self.modes = (self.q, self.agg0, self.dinv0, self.node_off, self.block_off,
                        self.row_off, self.row_ptr, self.col, self.values, self.dinv,
                        self.transfer, self.cagg, self.coarsest, np.concatenate(self.cdiag),
                        np.zeros((total, M)), np.zeros((total, M)), np.zeros((total, M)),
-                       np.zeros((pattern.n, 3)), pattern.diag, self.fine, self.first)
+                       np.zeros((pattern.n, 3)), pattern.diag, self.fine, self.first,
+                       self.diagonal)
 
     def _level(self, c):
         """Coarse level c's (row_ptr, col, values, nodes slice)."""
@@ -145,8 +147,9 @@ class ModeMultigrid:
         """Per solve: the fine diagonal inverses, every level's Galerkin operator and diagonal
         inverses, the coarsest level's Cholesky factor. Pinned vertices and those held by a
         stiff barrier (``STIFF``) take no part in the coarse levels."""
-        held = pinned_mask(constraints.kind, constraints.active) | _stiff(
-            matrix.values, matrix.pattern.diag, matrix.floor)
+        np.take(matrix.values, matrix.pattern.diag, axis=0, out=self.diagonal)
+        held = pinned_mask(constraints.kind, constraints.active) | _stiff(self.diagonal,
+                                                                          matrix.floor)
         block_jacobi(matrix.values, matrix.pattern.diag, constraints.kind, matrix.floor,
                      self.dinv0)
         _single(matrix.values, self.fine_mirror, float(np.finfo(self.fine.dtype).max),
@@ -174,9 +177,10 @@ class ModeMultigrid:
         mode_cycle(rhs, out, m.row_ptr, m.col, m.values, self.modes)
 
 
-def _stiff(values, diag, floor):
-    """The vertices whose diagonal block's trace exceeds ``STIFF`` times 3·floor."""
-    trace = np.einsum("vii->v", values[diag])
+def _stiff(diagonal, floor):
+    """The vertices whose diagonal block (``diagonal``: (n, 3, 3)) has a trace above ``STIFF``
+    times 3·floor."""
+    trace = np.einsum("vii->v", diagonal)
     return (floor > 0.0) & (trace > 3.0 * STIFF * floor)
 
 
@@ -325,7 +329,7 @@ def mode_cycle(rhs, out, row_ptr, col, values, mg):
     coarse levels, the coarsest solved by its Cholesky factor), a backward sweep."""
     q0, agg0, dinv0, node_off = mg[:4]
     r, z, t, t0, diag, single = mg[14:20]
-    forward_from_zero3(row_ptr, col, diag, single, values, dinv0, rhs, out, t0)
+    forward_from_zero3(row_ptr, col, diag, single, mg[21], dinv0, rhs, out, t0)
     lo, hi = node_off[0], node_off[1]
     _restrict3(q0, agg0, t0, r[lo:hi])
     _coarse_vcycle(mg, r, z, t)

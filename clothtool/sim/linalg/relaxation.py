@@ -249,8 +249,9 @@ def forward_from_zero3(row_ptr, col, diag, values, diagonal, diag_inv, r, x, res
     zeros); row i's residual is what the sweep left of it, t_i − A_ii x_i, minus Σ_{j>i} A_ij x_j,
     whose terms A_ji ᵀ x_j row j subtracts while its blocks are at hand, once x_j is known (in
     the order of j, as a pass over row i's blocks right of the diagonal would). The diagonal
-    blocks A_ii are read from ``diagonal`` (a matrix of the same pattern: the double-precision
-    one when ``values`` is a single-precision copy)."""
+    blocks A_ii are read from ``diagonal`` (n, 3, 3), one after the other (double precision
+    when ``values`` is a single-precision copy; read from the whole matrix at their slots, one
+    cache miss a row, the sweep took 1.6 times as long at 256²)."""
     n = x.shape[0]
     for i in range(n):
         t0, t1, t2 = _row_product3(row_ptr[i], diag[i], col, values, x, r[i, 0], r[i, 1], r[i, 2])
@@ -259,7 +260,7 @@ def forward_from_zero3(row_ptr, col, diag, values, diagonal, diag_inv, r, x, res
         y1 = d[1, 0] * t0 + d[1, 1] * t1 + d[1, 2] * t2
         y2 = d[2, 0] * t0 + d[2, 1] * t1 + d[2, 2] * t2
         x[i, 0], x[i, 1], x[i, 2] = y0, y1, y2
-        a = diagonal[diag[i]]  # D⁻¹ may differ from the block's inverse (a floor, rounding)
+        a = diagonal[i]  # D⁻¹ may differ from the block's inverse (a floor, rounding)
         res[i, 0] = t0 - (a[0, 0] * y0 + a[0, 1] * y1 + a[0, 2] * y2)
         res[i, 1] = t1 - (a[1, 0] * y0 + a[1, 1] * y1 + a[1, 2] * y2)
         res[i, 2] = t2 - (a[2, 0] * y0 + a[2, 1] * y1 + a[2, 2] * y2)
