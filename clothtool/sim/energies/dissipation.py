@@ -172,7 +172,11 @@ def plate_dissipation(x, base, ptr, col, coef, slots, grad, values):
             block[0, 0] += coef[k]
             block[1, 1] += coef[k]
             block[2, 2] += coef[k]
-    return quadratic_form(x - base, ptr, col, coef, grad)
+    d = np.empty((x.shape[0], 3))  # x − base in a loop: the array expression compiles a ufunc loop
+    for i in range(x.shape[0]):
+        for p in range(3):
+            d[i, p] = x[i, p] - base[i, p]
+    return quadratic_form(d, ptr, col, coef, grad)
 
 
 class StrainDissipation:

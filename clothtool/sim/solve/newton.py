@@ -92,7 +92,6 @@ from clothtool.sim.energies.terms import Membrane
 from clothtool.sim.linalg.filter import apply_filter
 from clothtool.sim.solve.integrator import Integrator, StepReport
 from clothtool.sim.linalg.blocks import BlockMatrix, ConstraintFilter
-from clothtool.sim.linalg.pairs import NO_PAIRS
 from clothtool.sim.linalg.pcg import filtered_pcg, make_preconditioner
 
 MAX_HALVINGS = 30  # down to 2⁻³⁰: a descent direction always decreases E for a small enough step
@@ -406,7 +405,7 @@ class NewtonIntegrator(Integrator):
             if prescribed:
                 for term in terms:
                     term.prescribe(x, dx, rhs)
-            operator = next((t.operator for t in terms if t.operator is not NO_PAIRS), NO_PAIRS)
+            operator = next((t.operator for t in terms if t.operator is not None), None)
             # prescribed motion still short of its goal puts the barrier's coupling −H_cX ΔX
             # (up to 1e22·m/ĥ² an entry) into the right-hand side, and one PCG iteration
             # that resolves that part alone meets a loose relative tolerance: the cloth
