@@ -88,7 +88,7 @@ from clothtool.sim.solve.potential import (Contact, Dissipation, Elastic, Inerti
                                            RayleighDamping, Stage)
 from clothtool.sim.energies.dissipation import StrainDissipation
 from clothtool.sim.energies.energy import FemElastic
-from clothtool.sim.energies.terms import Membrane
+from clothtool.sim.energies.terms import EdgeMembrane, Membrane
 from clothtool.sim.linalg.filter import apply_filter
 from clothtool.sim.solve.integrator import Integrator, StepReport
 from clothtool.sim.linalg.blocks import BlockMatrix, ConstraintFilter
@@ -185,8 +185,9 @@ class NewtonIntegrator(Integrator):
                                             panel))
         if model.strain_damping is not None:
             # damping_model: strain: the dissipation potential of the strains' change, with
-            # the triangle membrane in the same pass (the elastic term then leaves it out)
-            membrane = next((t for t in model.terms if isinstance(t, Membrane)), None)
+            # the triangle or edge membrane in the same pass (the elastic term then leaves it out)
+            membrane = next((t for t in model.terms if isinstance(t, (Membrane, EdgeMembrane))),
+                            None)
             if membrane is not None:
                 rest = [t for t in model.terms if t is not membrane]
                 terms[0] = Elastic(FemElastic(model, rest, model.constant_hessian))
