@@ -91,11 +91,10 @@ from clothtool.sim.solve.potential import (Contact, Dissipation, Elastic, Inerti
                                            RayleighDamping, Stage)
 from clothtool.sim.energies.dissipation import StrainDissipation
 from clothtool.sim.energies.energy import FemElastic
-from clothtool.sim.energies.terms import Membrane
+from clothtool.sim.energies.terms import EdgeMembrane, Membrane
 from clothtool.sim.linalg.filter import apply_filter
 from clothtool.sim.solve.integrator import Integrator, StepReport
 from clothtool.sim.linalg.blocks import BlockMatrix, ConstraintFilter
-from clothtool.sim.linalg.pairs import NO_PAIRS
 from clothtool.sim.linalg.pcg import filtered_pcg, make_preconditioner
 
 MAX_HALVINGS = 30  # down to 2⁻³⁰: a descent direction always decreases E for a small enough step
@@ -189,8 +188,9 @@ class NewtonIntegrator(Integrator):
                                             panel))
         if model.strain_damping is not None:
             # damping_model: strain: the dissipation potential of the strains' change, with
-            # the triangle membrane in the same pass (the elastic term then leaves it out)
-            membrane = next((t for t in model.terms if isinstance(t, Membrane)), None)
+            # the triangle or edge membrane in the same pass (the elastic term then leaves it out)
+            membrane = next((t for t in model.terms if isinstance(t, (Membrane, EdgeMembrane))),
+                            None)
             if membrane is not None:
                 rest = [t for t in model.terms if t is not membrane]
                 terms[0] = Elastic(FemElastic(model, rest, model.constant_hessian))
@@ -411,7 +411,7 @@ class NewtonIntegrator(Integrator):
             if prescribed:
                 for term in terms:
                     term.prescribe(x, dx, rhs)
-            operator = next((t.operator for t in terms if t.operator is not NO_PAIRS), NO_PAIRS)
+            operator = next((t.operator for t in terms if t.operator is not None), None)
             # prescribed motion still short of its goal puts the barrier's coupling −H_cX ΔX
             # (up to 1e22·m/ĥ² an entry) into the right-hand side, and one PCG iteration
             # that resolves that part alone meets a loose relative tolerance: the cloth
