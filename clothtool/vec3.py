@@ -90,7 +90,8 @@ def spd_inverse3(a, floor, out):
     m[0, 1] = m[1, 0] = a01
     m[0, 2] = m[2, 0] = a02
     m[1, 2] = m[2, 1] = a12
-    v = np.eye(3)
+    v = np.zeros((3, 3))  # the identity, without compiling np.eye
+    v[0, 0] = v[1, 1] = v[2, 2] = 1.0
     scale = abs(a00) + abs(a11) + abs(a22) + abs(a01) + abs(a02) + abs(a12)
     for _ in range(JACOBI_SWEEPS):
         off = abs(m[0, 1]) + abs(m[0, 2]) + abs(m[1, 2])

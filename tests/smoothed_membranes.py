@@ -1,12 +1,12 @@
 """Small sheets and assembly helpers for the tests of the smoothed membranes (``nodal``: one
-cell per vertex, ``edge``: one cell per edge; both assembled by the nodal membrane's kernels)."""
+cell per vertex, ``edge``: one cell per edge), each as its term on its own block pattern."""
 
 import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from clothtool.sim.energies.membrane_edge import edge_cells, edge_operator
-from clothtool.sim.energies.membrane_nodal import nodal_assemble, nodal_operator, nodal_pairs
+from clothtool.sim.energies.membrane_edge import edge_cells
+from clothtool.sim.energies.terms import EdgeMembrane, NodalMembrane
 from clothtool.sim.linalg.blocks import BlockMatrix, BlockPattern
 from clothtool.sim.textile import disc
 
@@ -25,43 +25,47 @@ def sheet(kind, stretch=STRETCH, shear=50.0, radius=0.03, spacing=0.01):
             np.full(m, float(shear)))
 
 
-def _system(faces, dr_inv, n, cells_operator):
-    """(operator, pattern, slots) of a smoothed membrane whose ``nodal_assemble`` arguments
-    are ``(faces, dr_inv) + cells_operator``."""
-    op = (faces, dr_inv) + cells_operator
-    pairs = nodal_pairs(op[2], op[3])
-    pattern = BlockPattern(n, pairs)
-    return op, pattern, pattern.slots(pairs)[:, 1]
+class System:
+    """A smoothed membrane ``term`` bound to a pattern of its own elements."""
+
+    def __init__(self, term, n):
+        self.term = term
+        self.pattern = BlockPattern(n, term.elements)
+        term.bind(self.pattern)
+
+    def energy(self, x):
+        return self.term.energy(x)
+
+    def assemble(self, x, project):
+        """(energy, gradient, matrix values) at x."""
+        self.term.project = project
+        grad = np.zeros_like(x)
+        values = self.pattern.zeros()
+        energy = self.term.assemble(x, grad, values)
+        return energy, grad, values
+
+    def dense(self, values):
+        return dense(self.pattern, values)
 
 
 def nodal_system(uv, faces, dr_inv, area, stretch, shear):
-    """The node-based membrane's (operator, pattern, slots)."""
-    return _system(faces, dr_inv, len(uv),
-                   nodal_operator(faces, dr_inv, area, len(uv), stretch, shear))
+    """The node-based membrane's :class:`System`."""
+    return System(NodalMembrane(faces, dr_inv, area, len(uv), stretch, shear), len(uv))
 
 
 def edge_system(uv, faces, dr_inv, area, stretch, shear, frames=None):
-    """The edge-based membrane's (operator, pattern, slots)."""
-    faces_e, dr_e, op = edge_operator(faces, dr_inv, area, len(uv), stretch, shear,
-                                      edge_cells(faces), frames)
-    return _system(faces_e, dr_e, len(uv), op)
+    """The edge-based membrane's :class:`System`."""
+    return System(EdgeMembrane(faces, dr_inv, area, stretch, shear, edge_cells(faces), frames),
+                  len(uv))
 
 
 SYSTEMS = {"nodal": nodal_system, "edge": edge_system}
 
 
 def sheet_system(membrane, kind, **sheet_args):
-    """(the :func:`sheet` of ``kind``, the (operator, pattern, slots) of ``membrane`` on it)."""
+    """(the :func:`sheet` of ``kind``, the :class:`System` of ``membrane`` on it)."""
     mesh = sheet(kind, **sheet_args)
     return mesh, SYSTEMS[membrane](*mesh)
-
-
-def assemble(op, pattern, slots, x, project):
-    """(energy, gradient, matrix values) at x."""
-    grad = np.zeros_like(x)
-    values = pattern.zeros()
-    energy = nodal_assemble(x, *op, project, slots, grad, values)
-    return energy, grad, values
 
 
 def dense(pattern, values):

@@ -17,7 +17,7 @@ from clothtool.geometry import dihedral_angles
 from clothtool.sim.energies.bending import dihedral_element, dihedral_total_energy
 from clothtool.sim.linalg.blocks import BlockMatrix
 from clothtool.sim.energies.membrane import max_principal_stretch
-from clothtool.sim.energies.terms import Membrane
+from clothtool.sim.energies.terms import EdgeMembrane, Membrane
 from clothtool.sim.solvers.compare import run_in_memory
 
 DR_INV = np.linalg.inv(np.array([[0.1, 0.03], [0.0, 0.08]]))  # a rest triangle, uv edges
@@ -172,15 +172,18 @@ def rigid_turn(angle=0.7, axis=(0.3, 1.0, -0.2)):
     return np.eye(3) + np.sin(angle) * k + (1 - np.cos(angle)) * k @ k
 
 
-def test_with_the_membrane_in_one_pass_it_is_the_sum_of_the_two():
+@pytest.mark.parametrize("membrane_model", ["triangle", "edge"])
+def test_with_the_membrane_in_one_pass_it_is_the_sum_of_the_two(membrane_model):
     """StrainDissipation(model, membrane) is W_membrane + Φ: energy, gradient and matrix
-    blocks those of the membrane term and the dissipation assembled apart (rounding)."""
+    blocks those of the membrane term (triangles or edges) and the dissipation assembled
+    apart (rounding)."""
     cfg = load_config({"mesh": {"grid": {"nx": 7, "ny": 5, "plane": "xz"}},
                        "material": {"damping_model": "strain", "damping": 0.03,
                                     "stretch": [900.0, 400.0], "rest_stretch": [1.05, 0.97],
-                                    "shear": 70.0, "bend": 1e-3}})
+                                    "shear": 70.0, "bend": 1e-3,
+                                    "membrane_model": membrane_model}})
     model = build_model(cfg)
-    membrane = next(t for t in model.terms if isinstance(t, Membrane))
+    membrane = next(t for t in model.terms if isinstance(t, (Membrane, EdgeMembrane)))
     rng = np.random.default_rng(6)
     base = model.mesh.positions + rng.normal(0, 0.02, model.mesh.positions.shape)
     x = base + rng.normal(0, 0.02, base.shape)
@@ -205,7 +208,7 @@ def test_one_pass_is_the_membrane_and_the_dissipation_on_random_triangles(seed, 
                                                                          b_v, shear, coef):
     """strain_assemble on one triangle: the membrane element's energy, gradient and projected
     Hessian plus the dissipation element's (projected), whatever the material and shape."""
-    from clothtool.sim.energies.dissipation import strain_assemble
+    from clothtool.sim.energies.dissipation import NO_EDGES, strain_assemble
     from clothtool.sim.energies.membrane import membrane_element
     from clothtool.sim.linalg.blocks import BlockPattern
 
@@ -217,8 +220,8 @@ def test_one_pass_is_the_membrane_and_the_dissipation_on_random_triangles(seed, 
     matrix = BlockMatrix(pattern)
     grad = np.zeros((3, 3))
     w, phi = strain_assemble(x, faces, DR_INV[None], np.array([AREA]), stretch,
-                             np.array([shear]), coef, base[None], pattern.slots(faces), grad,
-                             matrix.values)
+                             np.array([shear]), *NO_EDGES, coef, base[None],
+                             pattern.slots(faces), grad, matrix.values)
     g1, h1, g2, h2 = np.empty(9), np.empty((9, 9)), np.empty(9), np.empty((9, 9))
     w1 = membrane_element(x[0], x[1], x[2], DR_INV, AREA, stretch[0], shear, True, g1, h1,
                           np.empty((6, 6)))
@@ -302,9 +305,10 @@ def test_the_plates_damping_is_its_own_matrix_and_turns_with_its_force():
     assert_gradient_is_central_differences(term, x, grad)
     v = rng.normal(size=x.shape)
     triangles = BlockMatrix(model.pattern)
-    from clothtool.sim.energies.dissipation import strain_assemble
+    from clothtool.sim.energies.dissipation import NO_EDGES, strain_assemble
     strain_assemble(x, model.faces, model.dr_inv, model.area, np.zeros((0, 4)), np.zeros(0),
-                    term.coef, term.base, model.tri_slots, np.zeros_like(x), triangles.values)
+                    *NO_EDGES, term.coef, term.base, model.tri_slots, np.zeros_like(x),
+                    triangles.values)
     np.testing.assert_allclose(matrix.multiply(v, np.empty_like(v)) - triangles.multiply(v, np.empty_like(v)),
                                (q @ v) / 0.02, atol=1e-9 * np.abs(q @ v).max() / 0.02)
 

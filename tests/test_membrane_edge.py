@@ -6,8 +6,7 @@ from conftest import random_rotation
 from smoothed_membranes import edge_system, flat, random_sheets, sheet
 
 from clothtool.sim.energies.membrane import membrane_gradient, membrane_total_energy
-from clothtool.sim.energies.membrane_edge import edge_cells, edge_operator, unfolded_frames
-from clothtool.sim.energies.membrane_nodal import nodal_energy
+from clothtool.sim.energies.membrane_edge import edge_cells, edge_parts, unfolded_frames
 from clothtool.sim.energies.terms import EdgeMembrane, Membrane
 from clothtool.sim.model.builder import build_model
 from clothtool.sim.model.config import load_config
@@ -19,31 +18,65 @@ def test_never_above_the_triangles_energy(seed, kind):
     """Ψ is convex in C, so the smoothed metric stores at most the triangles' energy (Jensen),
     less where neighbouring triangles strain differently (a crumpled sheet)."""
     uv, faces, dr_inv, area, stretch, shear = sheet(kind)
-    op, _, _ = edge_system(uv, faces, dr_inv, area, stretch, shear)
+    system = edge_system(uv, faces, dr_inv, area, stretch, shear)
     rng = np.random.default_rng(seed)
     x = flat(uv) + 0.002 * rng.standard_normal((len(uv), 3))
     triangles = membrane_total_energy(x, faces, dr_inv, area, stretch, shear)
-    assert 0.0 < nodal_energy(x, *op) < triangles
+    assert 0.0 < system.energy(x) < triangles
 
 
 def test_cells_are_the_edges_and_share_out_the_area():
     uv, faces, dr_inv, area, stretch, shear = sheet("delaunay")
     cells = edge_cells(faces)
-    faces_e, _, (ptr, index, tri_ptr, tri, weight, local, cell, mat_stretch,
-                 mat_shear) = edge_operator(faces, dr_inv, area, len(uv), stretch, shear, cells)
-    edges = np.unique(np.sort(np.stack([faces, np.roll(faces, -1, axis=1)], axis=2), axis=2)
-                      .reshape(-1, 2), axis=0)
-    assert len(cell) == len(edges)
-    assert cell.sum() == pytest.approx(area.sum(), rel=1e-14)
-    for c in range(len(cell)):
-        mine = faces_e[tri[tri_ptr[c]:tri_ptr[c + 1]]]
-        assert len(mine) in (1, 2)
-        assert weight[tri_ptr[c]:tri_ptr[c + 1]].sum() == pytest.approx(1.0, rel=1e-14)
-        assert np.array_equal(index[ptr[c]:ptr[c + 1]], np.unique(mine))
-        assert np.array_equal(index[ptr[c]:ptr[c + 1]][local[tri_ptr[c]:tri_ptr[c + 1]]], mine)
-        shared = set(mine[0]).intersection(*map(set, mine))
-        assert len(shared) >= 2  # an edge's triangles share it
+    turn, weight, cell_area, mat_stretch, mat_shear = edge_parts(area, stretch, shear, cells)
+    pairs = np.sort(np.stack([faces, np.roll(faces, -1, axis=1)], axis=2), axis=2)
+    edges = np.unique(pairs.reshape(-1, 2), axis=0)
+    assert len(cell_area) == len(edges)
+    assert cell_area.sum() == pytest.approx(area.sum(), rel=1e-14)
+    for c in range(len(cell_area)):
+        mine = cells == c
+        assert mine.sum() in (1, 2) and len(np.unique(pairs[mine], axis=0)) == 1  # one edge
+        assert weight[mine].sum() == pytest.approx(1.0, rel=1e-14)
+        assert cell_area[c] == pytest.approx(area[np.flatnonzero(mine.any(axis=1))].sum() / 3)
+    assert np.array_equal(turn, np.broadcast_to(np.eye(2), turn.shape))
     assert np.allclose(mat_stretch, stretch[0]) and np.allclose(mat_shear, 50.0)
+
+
+def test_the_hessian_is_exact_on_one_triangle_and_along_affine_motions():
+    """The majorised Gauss–Newton part is exact on cells of one triangle (a lone triangle:
+    three such cells), and, at an affine map (every triangle the same F), along any affine
+    motion (every triangle the same change of F: equality in Jensen's inequality)."""
+    def second_derivative(system, x, d, h=1e-6):
+        return (system.assemble(x + h * d, False)[1]
+                - system.assemble(x - h * d, False)[1]).ravel() @ d.ravel() / (2 * h)
+
+    rng = np.random.default_rng(4)
+    uv = np.array([[0.0, 0.0], [0.011, 0.001], [0.003, 0.009]])
+    faces = np.array([[0, 1, 2]])
+    p = uv[faces]
+    dr = np.stack([p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]], axis=2)
+    one = edge_system(uv, faces, np.linalg.inv(dr), 0.5 * np.abs(np.linalg.det(dr)),
+                      np.array([[5000.0, 3000.0, 0.9, 1.0]]), np.array([50.0]))
+    x = flat(uv) + 0.002 * rng.standard_normal((3, 3))
+    k = one.dense(one.assemble(x, False)[2])
+    exact = np.zeros((9, 9))
+    for i in range(9):
+        d = np.zeros(9)
+        d[i] = 1e-7
+        exact[:, i] = (one.assemble(x + d.reshape(3, 3), False)[1]
+                       - one.assemble(x - d.reshape(3, 3), False)[1]).ravel() / 2e-7
+    assert np.abs(k - exact).max() <= 1e-6 * np.abs(exact).max()
+    uv, faces, dr_inv, area, stretch, shear = sheet("delaunay", stretch=(5000.0, 3000.0, 0.9, 1.0))
+    system = edge_system(uv, faces, dr_inv, area, stretch, shear)
+    a = np.eye(3, 2) + 0.1 * rng.standard_normal((3, 2))
+    x = uv @ a.T
+    k = system.dense(system.assemble(x, False)[2])
+    for _ in range(3):
+        d = uv @ rng.standard_normal((3, 2)).T
+        assert d.ravel() @ k @ d.ravel() == pytest.approx(second_derivative(system, x, d),
+                                                          rel=1e-6)
+    d = rng.standard_normal(x.shape)  # not affine: the majorant is strictly above
+    assert d.ravel() @ k @ d.ravel() > 1.01 * second_derivative(system, x, d)
 
 
 def test_the_config_key_selects_the_term():
@@ -139,7 +172,7 @@ def test_a_garments_panels_have_a_cell_each_at_their_seam(tmp_path):
 
     model, seam = welded_pair_model(tmp_path, {"membrane_model": "edge"})
     term = next(t for t in model.terms if isinstance(t, EdgeMembrane))
-    cells = term.operator[6]  # the cell areas
+    cells = term.cell_area
     edges = np.unique(np.sort(np.stack([model.faces, np.roll(model.faces, -1, axis=1)], axis=2),
                               axis=2).reshape(-1, 2), axis=0)
     assert len(cells) == len(edges) + len(seam) - 1

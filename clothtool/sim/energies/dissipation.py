@@ -44,6 +44,7 @@ from clothtool.sim.energies.bending import dihedral_assemble, dihedral_total_ene
 from clothtool.sim.energies.membrane import (add_triangle, deformation, deformation_gradient,
                                              membrane_density, membrane_total_energy,
                                              shear_outer, to_vertices)
+from clothtool.sim.energies.membrane_edge import edge_density
 from clothtool.sim.energies.plate import quadratic_form
 from clothtool.vec3 import add, dot, load, scale
 
@@ -51,6 +52,7 @@ EPS = 1e-12
 ZERO = (0.0, 0.0, 0.0)
 NO_GRADIENT = np.zeros((0, 3))  # the energy-only call of the plate's kernel
 NO_BLOCKS = np.zeros((0, 3, 3))
+NO_EDGES = (np.zeros((0, 3), np.int64), np.zeros((0, 3, 2, 2)), np.zeros((0, 3)), np.zeros((0, 9)))
 
 
 @njit(cache=True)
@@ -112,14 +114,20 @@ def dissipation_element(x0, x1, x2, dr_inv, area, coef, base, exact, grad, hess)
 
 
 @njit(cache=True)
-def strain_assemble(x, faces, dr_inv, area, stretch, k_shear, coef, base, slots, grad, values):
+def strain_assemble(x, faces, dr_inv, area, stretch, k_shear, cells, turn, weight, stress, coef,
+                    base, slots, grad, values):
     """(W, Φ) of the triangles; adds both gradients and projected Hessian blocks to grad
     (N, 3) and values in one pass: W the membrane's (``stretch`` (M, 4), ``k_shear`` (M,),
-    :mod:`clothtool.sim.energies.membrane`), none when ``stretch`` has no rows."""
+    :mod:`clothtool.sim.energies.membrane`), none when ``stretch`` has no rows. With
+    ``cells`` of rows, each triangle's share of the edge membrane's gradient and Hessian too
+    (:func:`~clothtool.sim.energies.membrane_edge.edge_density`, its cells' ``stress`` from
+    :func:`~clothtool.sim.energies.membrane_edge.edge_stresses` at x; its W is not summed
+    here)."""
     g = np.empty(9)
     hess = np.empty((9, 9))
     h_f = np.empty((6, 6))
     fused = stretch.shape[0] > 0
+    edged = cells.shape[0] > 0
     membrane, total = 0.0, 0.0
     for t in range(faces.shape[0]):
         f0, f1, alpha, beta = deformation(load(x, faces[t, 0]), load(x, faces[t, 1]),
@@ -130,6 +138,8 @@ def strain_assemble(x, faces, dr_inv, area, stretch, k_shear, coef, base, slots,
             membrane += area[t] * w
         else:
             h_f[:, :] = 0.0
+        if edged:
+            g0, g1 = edge_density(f0, f1, t, cells, turn, weight, stress, g0, g1, h_f)
         phi, g0, g1 = dissipation_density(f0, f1, coef[t], base[t], False, g0, g1, h_f)
         total += area[t] * phi
         to_vertices(alpha, beta, area[t], g0, g1, h_f, g, hess)
@@ -172,23 +182,33 @@ def plate_dissipation(x, base, ptr, col, coef, slots, grad, values):
             block[0, 0] += coef[k]
             block[1, 1] += coef[k]
             block[2, 2] += coef[k]
-    return quadratic_form(x - base, ptr, col, coef, grad)
+    d = np.empty((x.shape[0], 3))  # x − base in a loop: the array expression compiles a ufunc loop
+    for i in range(x.shape[0]):
+        for p in range(3):
+            d[i, p] = x[i, p] - base[i, p]
+    return quadratic_form(d, ptr, col, coef, grad)
 
 
 class StrainDissipation:
     """Φ over the Model's triangles (``strain_damping`` (M, 3): β_t k_u, β_t k_v, β_t k_h)
     and hinges (``bend_damping`` (H,): β_e c_e; none when None); :meth:`begin` sets the
     step's ĥ and the strains its rates are measured from. With ``membrane`` (the Model's
-    :class:`~clothtool.sim.energies.terms.Membrane` term) its energy and assembly are
-    W_membrane + Φ, in one pass over the triangles (both read the same F): the Newton loop
-    then leaves that term out of the elastic sum."""
+    :class:`~clothtool.sim.energies.terms.Membrane` or
+    :class:`~clothtool.sim.energies.terms.EdgeMembrane` term) its energy and assembly are
+    W_membrane + Φ, in one pass over the triangles (both read the same F; the edge
+    membrane's cells summed first): the Newton loop then leaves that term out of the
+    elastic sum."""
 
     def __init__(self, model, membrane=None):
         self.faces, self.dr_inv, self.area = model.faces, model.dr_inv, model.area
         self.slots = model.tri_slots
         self.membrane, self.h_eff = membrane, 1.0
-        self.stretch = membrane.stretch if membrane is not None else np.zeros((0, 4))
-        self.shear = membrane.shear if membrane is not None else np.zeros(0)
+        self.edge = membrane if getattr(membrane, "cells", None) is not None else None
+        triangles = membrane is not None and self.edge is None
+        self.stretch = membrane.stretch if triangles else np.zeros((0, 4))
+        self.shear = membrane.shear if triangles else np.zeros(0)
+        self.edge_parts = ((self.edge.cells, self.edge.turn, self.edge.weight, self.edge.stress)
+                           if self.edge is not None else NO_EDGES)
         self.damping = np.ascontiguousarray(model.strain_damping, dtype=np.float64)
         self.coef = np.zeros_like(self.damping)
         self.base = np.zeros_like(self.damping)
@@ -238,12 +258,16 @@ class StrainDissipation:
     def energy(self, x):
         total = strain_energy(x, self.faces, self.dr_inv, self.area, self.stretch, self.shear,
                               self.coef, self.base)
+        if self.edge is not None:
+            total += self.edge.energy(x)
         return total + self._bending(x, NO_GRADIENT, None)
 
     def assemble(self, x, grad, values):
+        edge = self.edge.stresses(x, True) if self.edge is not None else 0.0
         membrane, total = strain_assemble(x, self.faces, self.dr_inv, self.area, self.stretch,
-                                          self.shear, self.coef, self.base, self.slots, grad,
-                                          values)
+                                          self.shear, *self.edge_parts, self.coef, self.base,
+                                          self.slots, grad, values)
+        total += edge
         return membrane + total + self._bending(x, grad, values)
 
     def _bending(self, x, grad, values):

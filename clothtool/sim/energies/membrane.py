@@ -194,10 +194,10 @@ def membrane_density(f0, f1, stretch, k_shear, project, h_f):
     ``project``) into h_f (6, 6)."""
     g0, g1 = _stress(f0, f1, stretch, k_shear)
     h_f[:, :] = 0.0
-    if stretch[0] > 0.0:
-        _stretch_block(f0, stretch[0], stretch[2], project, h_f, 0)
-    if stretch[1] > 0.0:
-        _stretch_block(f1, stretch[1], stretch[3], project, h_f, 3)
+    for c in range(2):  # warp at 0, weft at 3 (offsets from the loop: numba would compile
+        # _stretch_block once per literal offset)
+        if stretch[c] > 0.0:
+            _stretch_block(f0 if c == 0 else f1, stretch[c], stretch[2 + c], project, h_f, 3 * c)
     if k_shear > 0.0:
         _shear_hessian(f0, f1, k_shear, project, h_f)
     return _density(f0, f1, stretch, k_shear), g0, g1

@@ -26,13 +26,35 @@ cut in the pattern) has a cell on each side; without one (a mesh resting curved)
 triangle's frame is turned (or mirrored, where the two triangles' orders disagree) about the
 edge onto its partner's, F_t → F_t Qᵀ, C_t → Q C_t Qᵀ.
 
-The kernels are the nodal membrane's (:func:`~clothtool.sim.energies.membrane_nodal.
-nodal_assemble`) over edge cells: each triangle enters once per edge, with its cell's
-frame. A cell's stencil is its edge's two triangles (four vertices): the dihedral hinges'
-blocks.
+Hessian. With J_t = ∂C'_t/∂x (C'_t = F_tᵀF_t read in the cell's frame) and Ψ'' = ∂²Ψ/∂C²
+(diagonal, ≥ 0: :mod:`~clothtool.sim.energies.membrane_nodal`), a cell's Hessian is
+
+    A_e [J_eᵀ Ψ'' J_e + Σ_t w_et (α_t, β_t) M (α_t, β_t)ᵀ ⊗ I₃],   J_e = Σ_t w_et J_t,
+
+whose first (Gauss–Newton) part couples the two vertices opposite the edge, blocks the
+triangles lack. It is replaced by A_e Σ_t w_et J_tᵀ Ψ'' J_t, never below it (Jensen,
+Σ_t w_et = 1) and equal where the cell's triangles see the same change of strain (any smooth
+motion). Both parts then live on each triangle's own vertices: per unit of its area,
+triangle t gathers from each of its edges' cells (A_e w_et/A_t = 1/3)
+
+    ∂Ψ/∂F_t ← ⅓ Σ_c ψ_c ∂C'_c/∂F_t,   ∂²Ψ/∂F_t² ← ⅓ [Σ_c Ψ''_c g_c g_cᵀ + R M Rᵀ ⊗ I₃],
+
+g_c = ∂C'_c/∂vec F_t, R the turn into the cell's frame (F_e = F_t R). The gradient and the
+stress part are exact; the matrix has the triangles' blocks, and with strain damping the
+triangles' pass assembles it with the dissipation's (:func:`~clothtool.sim.energies.
+dissipation.strain_assemble`), as it does the triangle membrane. Each assembly first sums
+every cell's C_e and its stresses (:func:`edge_stresses`), then visits the triangles.
 """
 
 import numpy as np
+from numba import njit
+
+from clothtool.sim.energies.membrane import add_triangle, deformation, to_vertices
+from clothtool.sim.energies.membrane_nodal import clamped_stress
+from clothtool.vec3 import dot, load
+
+EPS = 1e-12
+ZERO = (0.0, 0.0, 0.0)
 
 
 def edge_cells(faces, corner_uv=None):
@@ -81,34 +103,135 @@ def unfolded_frames(faces, dr, cells):
     return q.reshape(m, 3, 2, 2)
 
 
-def edge_operator(faces, dr_inv, area, n_vertices, stretch, shear, cells, frames=None):
-    """(faces_e, dr_inv_e, operator): the triangles once per edge cell, grouped by cell, with
-    their cells' frames (``frames`` (M, 3, 2, 2): :func:`unfolded_frames`, None: the
-    pattern's), and the nodal membrane's operator over the edge cells (ptr, index, tri_ptr,
-    tri, weight, local, cell areas A_e, materials averaged by area:
-    :func:`~clothtool.sim.energies.membrane_nodal.nodal_operator`'s order)."""
-    m = len(faces)
-    cell = np.asarray(cells, np.int64).ravel()
-    n_cells = int(cell.max()) + 1 if cell.size else 0
-    order = np.argsort(cell, kind="stable")
-    owner = cell[order]
-    tri_of = order // 3
-    faces_e = np.ascontiguousarray(faces[tri_of])
-    dr_e = dr_inv[tri_of]
-    if frames is not None:  # D_r → Q D_r, so D_r⁻¹ → D_r⁻¹ Qᵀ
-        dr_e = np.einsum("eij,ekj->eik", dr_e, frames.reshape(-1, 2, 2)[order])
-    dr_e = np.ascontiguousarray(dr_e)
-    third = area[tri_of] / 3.0
-    cell_area = np.bincount(owner, third, minlength=n_cells)
-    tri_ptr = np.concatenate([[0], np.cumsum(np.bincount(owner, minlength=n_cells))])
-    tri = np.arange(3 * m, dtype=np.int64)
-    weight = third / cell_area[owner]
-    key = np.unique(np.repeat(owner, 3) * n_vertices + faces_e.ravel())
-    index = (key % n_vertices).astype(np.int64)
-    ptr = np.concatenate([[0], np.cumsum(np.bincount(key // n_vertices, minlength=n_cells))])
-    local = np.searchsorted(key, owner[:, None] * n_vertices + faces_e) - ptr[owner][:, None]
-    mat_stretch = np.stack([np.bincount(owner, third * stretch[tri_of, c], minlength=n_cells)
+def edge_parts(area, stretch, shear, cells, frames=None):
+    """Per triangle edge (M, 3): its cell's turn R (M, 3, 2, 2), F_e = F_t R (Qᵀ of
+    ``frames`` (M, 3, 2, 2), :func:`unfolded_frames`; I with the pattern's frame), and weight
+    w_et = A_t/(3A_e); per cell: A_e and its materials averaged by area (``stretch`` (·, 4),
+    ``shear`` (·,))."""
+    cells = np.ascontiguousarray(cells, np.int64)
+    flat = cells.ravel()
+    n_cells = int(flat.max()) + 1 if flat.size else 0
+    third = np.repeat(area / 3.0, 3)
+    cell_area = np.bincount(flat, third, minlength=n_cells)
+    weight = (third / cell_area[flat]).reshape(cells.shape)
+    tri = np.repeat(np.arange(len(cells)), 3)
+    mat_stretch = np.stack([np.bincount(flat, third * stretch[tri, c], minlength=n_cells)
                             / cell_area for c in range(4)], axis=1)
-    mat_shear = np.bincount(owner, third * shear[tri_of], minlength=n_cells) / cell_area
-    return faces_e, dr_e, (ptr.astype(np.int64), index, tri_ptr.astype(np.int64), tri, weight,
-                           local.astype(np.int64), cell_area, mat_stretch, mat_shear)
+    mat_shear = np.bincount(flat, third * shear[tri], minlength=n_cells) / cell_area
+    if frames is None:
+        turn = np.broadcast_to(np.eye(2), (len(cells), 3, 2, 2))
+    else:
+        turn = np.asarray(frames).transpose(0, 1, 3, 2)
+    return np.ascontiguousarray(turn), weight, cell_area, mat_stretch, mat_shear
+
+
+@njit(cache=True)
+def _turned(f0, f1, r):
+    """The columns of F R."""
+    return ((f0[0] * r[0, 0] + f1[0] * r[1, 0], f0[1] * r[0, 0] + f1[1] * r[1, 0],
+             f0[2] * r[0, 0] + f1[2] * r[1, 0]),
+            (f0[0] * r[0, 1] + f1[0] * r[1, 1], f0[1] * r[0, 1] + f1[1] * r[1, 1],
+             f0[2] * r[0, 1] + f1[2] * r[1, 1]))
+
+
+@njit(cache=True)
+def edge_stresses(x, faces, dr_inv, cells, turn, weight, cell_area, stretch, shear, project,
+                  metric, stress):
+    """W = Σ_e A_e Ψ(C_e); writes each cell's C_e into metric (E, 3) and into stress (E, 9)
+    its ∂Ψ/∂C (ψ₀₀, ψ₁₁, ψ₀₁), M = [[2ψ₀₀, ψ₀₁], [ψ₀₁, 2ψ₁₁]] (PSD-projected with
+    ``project``) and ∂²Ψ/∂C² (diagonal)."""
+    metric[:, :] = 0.0
+    for t in range(faces.shape[0]):
+        f0, f1, _, _ = deformation(load(x, faces[t, 0]), load(x, faces[t, 1]),
+                                   load(x, faces[t, 2]), dr_inv[t])
+        for k in range(3):
+            g0, g1 = _turned(f0, f1, turn[t, k])
+            e, w = cells[t, k], weight[t, k]
+            metric[e, 0] += w * dot(g0, g0)
+            metric[e, 1] += w * dot(g1, g1)
+            metric[e, 2] += w * dot(g0, g1)
+    total = 0.0
+    for e in range(len(cell_area)):
+        c00, c11, c01 = metric[e, 0], metric[e, 1], metric[e, 2]
+        st, kh = stretch[e], shear[e]
+        n0s = np.sqrt(max(c00, 0.0))
+        n1s = np.sqrt(max(c11, 0.0))
+        total += cell_area[e] * (0.5 * st[0] * (n0s - st[2]) ** 2
+                                 + 0.5 * st[1] * (n1s - st[3]) ** 2 + 0.5 * kh * c01 * c01)
+        n0 = max(n0s, EPS)
+        n1 = max(n1s, EPS)
+        psi0 = 0.5 * st[0] * (n0 - st[2]) / n0
+        psi1 = 0.5 * st[1] * (n1 - st[3]) / n1
+        psi2 = kh * c01
+        m00, m11, m01 = 2.0 * psi0, 2.0 * psi1, psi2
+        if project:
+            m00, m11, m01 = clamped_stress(m00, m11, m01)
+        stress[e, 0], stress[e, 1], stress[e, 2] = psi0, psi1, psi2
+        stress[e, 3], stress[e, 4], stress[e, 5] = m00, m11, m01
+        stress[e, 6] = 0.25 * st[0] * st[2] / (n0 * n0 * n0)
+        stress[e, 7] = 0.25 * st[1] * st[3] / (n1 * n1 * n1)
+        stress[e, 8] = kh
+    return total
+
+
+@njit(cache=True)
+def edge_density(f0, f1, t, cells, turn, weight, stress, g0, g1, h_f):
+    """Triangle t's share of its edges' cells per unit of its area, at its F = (f0, f1):
+    returns (g0, g1) + ∂W/∂F_t / A_t and adds to h_f (6, 6) the Hessian of the module
+    docstring (the stress part exact, the Gauss–Newton part majorised: Jensen per cell)."""
+    a0, a1, a2 = g0
+    b0, b1, b2 = g1
+    for k in range(3):
+        r, s = turn[t, k], stress[cells[t, k]]
+        u, v = _turned(f0, f1, r)  # the cell's frame: C'_t = (u·u, v·v, u·v)
+        third = 1.0 / 3.0
+        for p in range(3):
+            # ∂C'/∂f0 and ∂C'/∂f1 of each component (00, 11, 01)
+            d00, e00 = 2.0 * r[0, 0] * u[p], 2.0 * r[1, 0] * u[p]
+            d11, e11 = 2.0 * r[0, 1] * v[p], 2.0 * r[1, 1] * v[p]
+            d01, e01 = r[0, 0] * v[p] + r[0, 1] * u[p], r[1, 0] * v[p] + r[1, 1] * u[p]
+            gp = third * (s[0] * d00 + s[1] * d11 + s[2] * d01)
+            hp = third * (s[0] * e00 + s[1] * e11 + s[2] * e01)
+            if p == 0:
+                a0, b0 = a0 + gp, b0 + hp
+            elif p == 1:
+                a1, b1 = a1 + gp, b1 + hp
+            else:
+                a2, b2 = a2 + gp, b2 + hp
+            for q in range(3):
+                d00q, e00q = 2.0 * r[0, 0] * u[q], 2.0 * r[1, 0] * u[q]
+                d11q, e11q = 2.0 * r[0, 1] * v[q], 2.0 * r[1, 1] * v[q]
+                d01q = r[0, 0] * v[q] + r[0, 1] * u[q]
+                e01q = r[1, 0] * v[q] + r[1, 1] * u[q]
+                h_f[p, q] += third * (s[6] * d00 * d00q + s[7] * d11 * d11q + s[8] * d01 * d01q)
+                h_f[p, 3 + q] += third * (s[6] * d00 * e00q + s[7] * d11 * e11q + s[8] * d01 * e01q)
+                h_f[3 + p, q] += third * (s[6] * e00 * d00q + s[7] * e11 * d11q + s[8] * e01 * d01q)
+                h_f[3 + p, 3 + q] += third * (s[6] * e00 * e00q + s[7] * e11 * e11q
+                                          + s[8] * e01 * e01q)
+        # the stress part: (R M Rᵀ)/3 ⊗ I₃
+        m00, m11, m01 = s[3], s[4], s[5]
+        q00 = r[0, 0] * (m00 * r[0, 0] + m01 * r[0, 1]) + r[0, 1] * (m01 * r[0, 0] + m11 * r[0, 1])
+        q01 = r[0, 0] * (m00 * r[1, 0] + m01 * r[1, 1]) + r[0, 1] * (m01 * r[1, 0] + m11 * r[1, 1])
+        q11 = r[1, 0] * (m00 * r[1, 0] + m01 * r[1, 1]) + r[1, 1] * (m01 * r[1, 0] + m11 * r[1, 1])
+        for p in range(3):
+            h_f[p, p] += third * q00
+            h_f[p, 3 + p] += third * q01
+            h_f[3 + p, p] += third * q01
+            h_f[3 + p, 3 + p] += third * q11
+    return (a0, a1, a2), (b0, b1, b2)
+
+
+@njit(cache=True)
+def edge_assemble(x, faces, dr_inv, area, cells, turn, weight, stress, slots, grad, values):
+    """Adds ∇W and the Hessian blocks (:func:`edge_density`) triangle by triangle to grad
+    (N, 3) and values[slots] (the cells' ``stress`` from :func:`edge_stresses` at x)."""
+    g = np.empty(9)
+    hess = np.empty((9, 9))
+    h_f = np.empty((6, 6))
+    for t in range(faces.shape[0]):
+        f0, f1, alpha, beta = deformation(load(x, faces[t, 0]), load(x, faces[t, 1]),
+                                          load(x, faces[t, 2]), dr_inv[t])
+        h_f[:, :] = 0.0
+        g0, g1 = edge_density(f0, f1, t, cells, turn, weight, stress, ZERO, ZERO, h_f)
+        to_vertices(alpha, beta, area[t], g0, g1, h_f, g, hess)
+        add_triangle(faces[t], slots[t], g, hess, grad, values)

@@ -213,22 +213,7 @@ def nodal_assemble(x, faces, dr_inv, ptr, index, tri_ptr, tri, weight, local, ce
                             values[k2, q, p] += b
         m00, m11, m01 = 2.0 * psi0, 2.0 * psi1, psi2
         if project:
-            half = 0.5 * (m00 - m11)
-            root = np.sqrt(half * half + m01 * m01)
-            l1 = 0.5 * (m00 + m11) + root
-            l2 = 0.5 * (m00 + m11) - root
-            if root > 0.0:
-                ux, uy = m01, l1 - m00
-                if ux * ux + uy * uy < (l1 - m11) ** 2 + m01 * m01:
-                    ux, uy = l1 - m11, m01
-                norm = np.sqrt(ux * ux + uy * uy)
-                ux, uy = ux / norm, uy / norm
-            else:
-                ux, uy = 1.0, 0.0
-            l1, l2 = max(l1, 0.0), max(l2, 0.0)
-            m00 = l1 * ux * ux + l2 * uy * uy
-            m11 = l1 * uy * uy + l2 * ux * ux
-            m01 = (l1 - l2) * ux * uy
+            m00, m11, m01 = clamped_stress(m00, m11, m01)
         for e in range(tri_ptr[v], tri_ptr[v + 1]):
             t = tri[e]
             d = dr_inv[t]
@@ -250,3 +235,22 @@ def nodal_assemble(x, faces, dr_inv, ptr, index, tri_ptr, tri, weight, local, ce
         start += m * m
     return total
 
+
+
+@njit(cache=True)
+def clamped_stress(m00, m11, m01):
+    """The symmetric 2 × 2 [[m00, m01], [m01, m11]] with its negative eigenvalue set to 0."""
+    half = 0.5 * (m00 - m11)
+    root = np.sqrt(half * half + m01 * m01)
+    l1 = 0.5 * (m00 + m11) + root
+    l2 = 0.5 * (m00 + m11) - root
+    if root > 0.0:
+        ux, uy = m01, l1 - m00
+        if ux * ux + uy * uy < (l1 - m11) ** 2 + m01 * m01:
+            ux, uy = l1 - m11, m01
+        norm = np.sqrt(ux * ux + uy * uy)
+        ux, uy = ux / norm, uy / norm
+    else:
+        ux, uy = 1.0, 0.0
+    l1, l2 = max(l1, 0.0), max(l2, 0.0)
+    return l1 * ux * ux + l2 * uy * uy, l1 * uy * uy + l2 * ux * ux, (l1 - l2) * ux * uy

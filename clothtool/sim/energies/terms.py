@@ -29,7 +29,7 @@ from clothtool.sim.energies.bending import (dihedral_assemble, dihedral_total_en
                                    quadratic_gradient)
 from clothtool.sim.linalg.blocks import scatter_blocks
 from clothtool.sim.energies.membrane import membrane_assemble, membrane_total_energy
-from clothtool.sim.energies.membrane_edge import edge_operator
+from clothtool.sim.energies.membrane_edge import edge_assemble, edge_parts, edge_stresses
 from clothtool.sim.energies.membrane_nodal import nodal_assemble, nodal_energy, nodal_operator, nodal_pairs
 from clothtool.sim.energies.plate import hessian_gradient
 
@@ -101,16 +101,39 @@ class NodalMembrane(Term):
                               grad, values)
 
 
-class EdgeMembrane(NodalMembrane):
+class EdgeMembrane(Term):
     """Σ_e A_e Ψ(C_e), C_e the metric FᵀF averaged over edge e's third of its two triangles
     (``cells`` (M, 3): each triangle edge's cell, ``frames``: their unfolded frames or None,
-    :mod:`~clothtool.sim.energies.membrane_edge`); stretch and shear, stencils the edges'
-    flaps."""
+    :mod:`~clothtool.sim.energies.membrane_edge`); stretch and shear, on the triangles'
+    blocks (the Hessian's Gauss–Newton part majorised there)."""
 
-    def __init__(self, faces, dr_inv, area, n, stretch, shear, cells, frames=None):
-        self.faces, self.dr_inv, self.operator = edge_operator(faces, dr_inv, area, n, stretch,
-                                                               shear, cells, frames)
-        self.elements = nodal_pairs(*self.operator[:2])
+    def __init__(self, faces, dr_inv, area, stretch, shear, cells, frames=None):
+        self.elements = faces
+        self.faces, self.dr_inv, self.area = faces, dr_inv, area
+        self.cells = np.ascontiguousarray(cells, np.int64)
+        (self.turn, self.weight, self.cell_area, self.stretch,
+         self.shear) = edge_parts(area, stretch, shear, self.cells, frames)
+        self.metric = np.empty((len(self.cell_area), 3))
+        self.stress = np.empty((len(self.cell_area), 9))
+
+    def bind(self, pattern):
+        self.slots = pattern.slots(self.faces)
+
+    def stresses(self, x, project):
+        """W(x), each cell's metric and stress at x (:func:`~clothtool.sim.energies.
+        membrane_edge.edge_stresses`) kept for the assembly."""
+        return edge_stresses(x, self.faces, self.dr_inv, self.cells, self.turn, self.weight,
+                             self.cell_area, self.stretch, self.shear, project,
+                             self.metric, self.stress)
+
+    def energy(self, x):
+        return self.stresses(x, self.project)
+
+    def assemble(self, x, grad, values):
+        total = self.stresses(x, self.project)
+        edge_assemble(x, self.faces, self.dr_inv, self.area, self.cells, self.turn, self.weight,
+                      self.stress, self.slots, grad, values)
+        return total
 
 
 class PlateBending(Term):

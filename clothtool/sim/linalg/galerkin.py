@@ -111,7 +111,7 @@ def _galerkin(row_ptr, col, values, skip, slot_map, mirror, p, out, b):
     for i in range(row_ptr.shape[0] - 1):
         if skip[i]:
             continue
-        used = 0
+        used = np.int64(0)  # not the literal 0: numba would compile _slot for it too
         for s in range(row_ptr[i], row_ptr[i + 1]):  # acc[slot] += A_ij P_j
             j = col[s]
             if skip[j] or mirror[slot_map[s]] < slot_map[s]:

@@ -133,8 +133,8 @@ def _translation_rows(point, centroid, rho, frame, shear, out):
     d1 = (point[1] - centroid[1]) / rho
     d2 = (point[2] - centroid[2]) / rho
     _rotations(d0, d1, d2, out)
-    _shear(frame, 0, shear[0])
-    _shear(frame, 1, shear[1])
+    for s in range(2):  # s from a loop: a literal s would compile _shear once per value
+        _shear(frame, s, shear[s])
     for s in range(2):
         for p in range(3):
             out[p, 6 + s] = shear[s, p, 0] * d0 + shear[s, p, 1] * d1 + shear[s, p, 2] * d2
@@ -171,8 +171,8 @@ def coarse_prolongator(count, centroid, radius, frame, agg, c_centroid, c_radius
         ratio = radius[a] / rho
         for k in range(3):
             t[a, 3 + k, 3 + k] = ratio
-        _shear(frame[a], 0, la[0])
-        _shear(frame[a], 1, la[1])
+        for s in range(2):
+            _shear(frame[a], s, la[s])
         for s in range(2):
             for j in range(2):
                 inner = 0.0

@@ -81,7 +81,6 @@ class Hierarchy:
         self.r = np.zeros((self.node_off[-1], 3))
         self.z = np.zeros((self.node_off[-1], 3))
         self.t = np.zeros((self.node_off[-1], 3))
-        self.inverse = np.zeros((0, 3, 3))  # the V-cycle has its own diagonal inverses
         # the tuple the numba kernels take
         self.arrays = (self.node_off, self.block_off, self.row_ptr, self.row_off, self.col,
                        self.agg, self.slot_map, self.values, self.diag_inv, self.coarsest, self.r,
@@ -204,9 +203,11 @@ def vcycle(rhs, out, mg):
     """out = B rhs: ωD⁻¹ rhs + P B₁ Pᵀ rhs, B₁ a V-cycle on the coarse levels."""
     node_off, _, _, _, _, agg, _, _, diag_inv, coarsest, r, z, t = mg
     levels = node_off.shape[0] - 1
-    n = node_off[1]
+    # level 0's nodes 0..n as node_off[0]..: a literal 0 would compile the kernels it is
+    # passed to once more (numba specialises a jitted callee on each literal argument)
+    first, n = node_off[0], node_off[1]
     r[n:] = 0.0
-    _restrict(0, n, n, agg, rhs, r)
+    _restrict(first, n, n, agg, rhs, r)
     for lev in range(1, levels - 1):  # down: pre-smooth, restrict the residual
         lo, hi = node_off[lev], node_off[lev + 1]
         z[lo:hi] = 0.0
@@ -231,4 +232,4 @@ def vcycle(rhs, out, mg):
     for i in range(n):  # finest level: additive smoother plus prolonged coarse correction
         for p in range(3):
             out[i, p] = z[n + agg[i], p]
-    _jacobi_sweep(0, n, diag_inv, rhs, out)
+    _jacobi_sweep(first, n, diag_inv, rhs, out)

@@ -33,8 +33,8 @@ from clothtool.sim.linalg.blocks import BlockPattern
 from clothtool.sim.linalg.galerkin import galerkin, pinned_mask
 from clothtool.sim.linalg.modes import (M, coarse_prolongator, coarser_sums, fine_prolongator,
                                         node_frames, node_sums)
-from clothtool.sim.linalg.relaxation import (block_inverses, block_jacobi, cholesky,
-                                             cholesky_solve, forward_from_zero,
+from clothtool.sim.linalg.relaxation import (BACKWARD, FORWARD, block_inverses, block_jacobi,
+                                             cholesky, cholesky_solve, forward_from_zero,
                                              forward_from_zero3, gauss_seidel, gauss_seidel3,
                                              residual)
 
@@ -68,8 +68,6 @@ class ModeMultigrid:
     each coarse pattern. Coarse level c (c = 0 the first) has nodes node_off[c]:node_off[c+1]
     of the coarse arrays, blocks block_off[c]:block_off[c+1] and its CSR row pointers at
     row_off[c] (local indices)."""
-
-    inverse = np.zeros((0, 3, 3))  # block Jacobi's inverses, unused here
 
     def __init__(self, pattern, faces, smoother=SMOOTHER):
         triangles = BlockPattern(pattern.n, faces)
@@ -303,7 +301,7 @@ def _coarse_vcycle(mg, r, z, t):
                               z[lo:hi], t[lo:hi])
             for _ in range(SWEEPS - 1):
                 gauss_seidel(rp, cl, c_diag[lo:hi], vals, c_dinv[lo:hi], r[lo:hi], z[lo:hi],
-                             True)
+                             FORWARD)
             residual(rp, cl, vals, r[lo:hi], z[lo:hi], t[lo:hi])
         _restrict(transfer[lo:hi], c_agg[lo:hi], t[lo:hi], r[hi:node_off[c + 2]])
     last = levels - 1
@@ -316,11 +314,11 @@ def _coarse_vcycle(mg, r, z, t):
         _prolong(transfer[lo:hi], c_agg[lo:hi], z[hi:node_off[c + 2]], z[lo:hi])
         if c == 0:
             gauss_seidel(rp, cl, c_diag[lo:hi], first, c_dinv[lo:hi], r[lo:hi], z[lo:hi],
-                         False)
+                         BACKWARD)
         else:
             for _ in range(SWEEPS):
                 gauss_seidel(rp, cl, c_diag[lo:hi], vals, c_dinv[lo:hi], r[lo:hi], z[lo:hi],
-                             False)
+                             BACKWARD)
 
 
 @njit(cache=True)

@@ -19,9 +19,6 @@ def pair_operator(rows, weights, blocks, count, n):
     return (rows, weights, blocks, np.int64(count), np.int64(n))
 
 
-NO_PAIRS = pair_operator(np.zeros((0, 4), np.int64), np.zeros((0, 4)), np.zeros((0, 3, 3)), 0, 0)
-
-
 @njit(cache=True)
 def pairs_offdiagonal_multiply(operator, v, out, scale):
     """out += scale (H − blockdiag H) v over the unknowns (vertices below n)."""

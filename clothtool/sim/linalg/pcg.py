@@ -24,7 +24,7 @@ from clothtool.sim.linalg.blocks import block_multiply, residual
 from clothtool.sim.linalg.multigrid import COARSEST, Hierarchy, vcycle
 from clothtool.sim.linalg.multilevel import COARSEST as MODES_COARSEST
 from clothtool.sim.linalg.multilevel import ModeMultigrid, mode_cycle
-from clothtool.sim.linalg.pairs import NO_PAIRS, pairs_offdiagonal_multiply
+from clothtool.sim.linalg.pairs import pairs_offdiagonal_multiply
 from clothtool.sim.linalg.relaxation import block_jacobi
 from clothtool.vec3 import copy_into
 
@@ -133,19 +133,20 @@ def _xpby(x, beta, y):
 @njit(cache=True)
 def _precondition(inv, r, kind, constrained, z, mg, row_ptr, col, values, modes):
     """z = S P⁻¹ r: the mode multigrid's cycle when ``modes`` holds one, the multigrid V-cycle
-    when ``mg`` does, else block Jacobi. The preconditioners absent are ``None``: numba prunes
-    their branches, so a run compiles only the cycle it uses."""
+    when ``mg`` does, block Jacobi when ``inv`` does. The two absent are ``None``: numba prunes
+    a test of a ``None`` argument (not an ``elif`` or ``else`` after a test it kept), so a run
+    compiles only the cycle it uses."""
     if modes is not None:
         mode_cycle(r, z, row_ptr, col, values, modes)
-    elif mg is not None:
+    if mg is not None:
         vcycle(r, z, mg)
-    else:
+    if inv is not None:
         _apply_inverse(inv, r, z)
     if constrained:
         apply_filter(z, kind)
 
 
-def filtered_pcg(matrix, b, x, constraints, tol, max_iter, preconditioner, extra=NO_PAIRS):
+def filtered_pcg(matrix, b, x, constraints, tol, max_iter, preconditioner, extra=None):
     """Solve S(A x − b) = 0 from x, whose constrained components (I − S)x stay as given.
 
     ``matrix``: a :class:`BlockMatrix`; ``constraints``: a :class:`ConstraintFilter`
@@ -154,7 +155,8 @@ def filtered_pcg(matrix, b, x, constraints, tol, max_iter, preconditioner, extra
     :class:`~clothtool.sim.linalg.multilevel.ModeMultigrid` or a :class:`Hybrid` (which picks
     one of its two by ``tol``), set up here for this matrix and filter;
     ``extra``: a pair operator (:mod:`clothtool.sim.linalg.pairs`) whose off-diagonal part is
-    applied matrix-free; its diagonal blocks are already in the matrix. Stops when the true relative residual ‖S(b − Ax)‖ / ‖S b‖ ≤ ``tol`` or after
+    applied matrix-free, its diagonal blocks already in the matrix (``None`` in a scene
+    without contact: numba then compiles no pair product). Stops when the true relative residual ‖S(b − Ax)‖ / ‖S b‖ ≤ ``tol`` or after
     ``max_iter`` iterations. Returns (iterations, relative true residual).
     """
     if isinstance(preconditioner, Hybrid):
@@ -169,9 +171,9 @@ def _arrays(preconditioner):
     """What the kernels take of a preconditioner: (block-Jacobi inverses, multigrid arrays,
     mode-multigrid arrays), ``None`` for the kinds it is not."""
     if isinstance(preconditioner, ModeMultigrid):
-        return preconditioner.inverse, None, preconditioner.modes
+        return None, None, preconditioner.modes
     if isinstance(preconditioner, Hierarchy):
-        return preconditioner.inverse, preconditioner.arrays, None
+        return None, preconditioner.arrays, None
     return preconditioner.inverse, None, None
 
 
@@ -179,7 +181,7 @@ def _arrays(preconditioner):
 def _residual_with(row_ptr, col, values, extra, b, x, r):
     """r = b − (A + H_extra) x."""
     residual(row_ptr, col, values, b, x, r)
-    if extra[3] > 0:
+    if extra is not None and extra[3] > 0:
         pairs_offdiagonal_multiply(extra, x, r, -1.0)
 
 
@@ -190,7 +192,7 @@ def filtered_pcg_arrays(row_ptr, col, values, b, x, kind, constrained, tol, max_
     the block-Jacobi inverses (:func:`block_jacobi`), or ``mg`` the arrays of a multigrid
     hierarchy after ``setup_levels``, or ``modes`` those of a mode multigrid after its
     ``setup`` (``None`` for the ones not used); ``extra`` the matrix-free contact blocks
-    (``NO_PAIRS`` for none)."""
+    (``None`` for none)."""
     n = b.shape[0]
     sb = b.copy()
     if constrained:
@@ -222,7 +224,7 @@ def filtered_pcg_arrays(row_ptr, col, values, b, x, kind, constrained, tol, max_
             copy_into(z, p)
             rz = _dot(r, z)
         block_multiply(row_ptr, col, values, p, q)
-        if extra[3] > 0:
+        if extra is not None and extra[3] > 0:
             pairs_offdiagonal_multiply(extra, p, q, 1.0)
         if constrained:
             apply_filter(q, kind)

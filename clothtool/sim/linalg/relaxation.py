@@ -20,6 +20,9 @@ from clothtool.sim.linalg.modes import M
 from clothtool.vec3 import spd_inverse3
 
 PIVOT = 1e-12  # smallest Cholesky pivot relative to its diagonal entry
+# a sweep's direction, as values numba types as plain bool: a literal True / False argument
+# would compile a sweep once per direction
+FORWARD, BACKWARD = np.bool_(True), np.bool_(False)
 
 
 @njit(cache=True, inline="always")

@@ -440,7 +440,7 @@ def _elastic_terms(faces, dr_inv, area, stretch, shear, bend_model, plate, n, hi
     membrane's cells (None: one per vertex) or the edge membrane's, ``frames`` its frames."""
     terms = []
     if membrane_model == "edge":  # stretch and shear on the edges' smoothed metric
-        terms.append(EdgeMembrane(faces, dr_inv, area, n, stretch, shear, cells, frames))
+        terms.append(EdgeMembrane(faces, dr_inv, area, stretch, shear, cells, frames))
     elif membrane_model == "nodal":  # stretch on the vertices' smoothed metric, shear per triangle
         if np.any(stretch[:, :2] > 0.0):
             terms.append(NodalMembrane(faces, dr_inv, area, n, stretch, np.zeros_like(shear),

@@ -746,6 +746,10 @@ class Solver(Section):
                                         "second iterate (the step's start is no iterate of "
                                         "the minimisation), so the second PCG solve asks "
                                         "for 0.15")
+    first_forcing: float = setting(0.0, number(minimum=0, below=1),
+                                   "contact: Newton's first PCG of a step solves to this "
+                                   "relative residual (the step from x_n that CCD cuts "
+                                   "short at impact); 0 = solver.tolerance")
     line_search: bool = setting(True, flag,
                                 "halve a Newton step until the incremental potential does not "
                                 "increase")

@@ -40,8 +40,11 @@ Walker 1996, "Choosing the forcing terms in an inexact Newton method"): the firs
 PCG solves to ``solver.tolerance``, later ones to η = 0.9 (‖∇E_k‖/‖∇E_{k−1}‖)², at
 least ``solver.tolerance`` and at most 0.15 (with ``solver.forcing_from_second``, the second
 at 0.15 when Newton starts at x_n: that start is no iterate of the minimisation, and with
-friction BDF2's velocity there turns every slip), each warm-started from what the line
-search left of the previous step. A single Newton step (``newton_iterations: 1``) starts
+friction BDF2's velocity there turns every slip; with ``solver.first_forcing`` η₀, the first
+at η₀ when Newton starts at x_n: at impact that step is long and CCD cuts it to a tenth or
+a quarter, and a PCG to 1e-6 over it ran to its cap of iterations for a direction the next
+steps replace), each warm-started from what the line search left of the previous step. A
+single Newton step (``newton_iterations: 1``) starts
 from x_n instead, with the PCG guess h v_n: that is exactly Baraff–Witkin's linearised step
 (M − h ∂f/∂v − h² ∂f/∂x) Δv = h (f + h ∂f/∂x v_n) for backward Euler.
 
@@ -88,11 +91,10 @@ from clothtool.sim.solve.potential import (Contact, Dissipation, Elastic, Inerti
                                            RayleighDamping, Stage)
 from clothtool.sim.energies.dissipation import StrainDissipation
 from clothtool.sim.energies.energy import FemElastic
-from clothtool.sim.energies.terms import Membrane
+from clothtool.sim.energies.terms import EdgeMembrane, Membrane
 from clothtool.sim.linalg.filter import apply_filter
 from clothtool.sim.solve.integrator import Integrator, StepReport
 from clothtool.sim.linalg.blocks import BlockMatrix, ConstraintFilter
-from clothtool.sim.linalg.pairs import NO_PAIRS
 from clothtool.sim.linalg.pcg import filtered_pcg, make_preconditioner
 
 MAX_HALVINGS = 30  # down to 2⁻³⁰: a descent direction always decreases E for a small enough step
@@ -186,8 +188,9 @@ class NewtonIntegrator(Integrator):
                                             panel))
         if model.strain_damping is not None:
             # damping_model: strain: the dissipation potential of the strains' change, with
-            # the triangle membrane in the same pass (the elastic term then leaves it out)
-            membrane = next((t for t in model.terms if isinstance(t, Membrane)), None)
+            # the triangle or edge membrane in the same pass (the elastic term then leaves it out)
+            membrane = next((t for t in model.terms if isinstance(t, (Membrane, EdgeMembrane))),
+                            None)
             if membrane is not None:
                 rest = [t for t in model.terms if t is not membrane]
                 terms[0] = Elastic(FemElastic(model, rest, model.constant_hessian))
@@ -373,6 +376,8 @@ class NewtonIntegrator(Integrator):
         self.preconditioner.update(x, constraints)
         tol, grad = solver.newton_tolerance if tol is None else tol, self._grad
         forcing, g_prev, step, cut = solver.tolerance, 0.0, 1.0, False
+        if solver.first_forcing > 0.0 and stage.from_state and solver.newton_iterations > 1:
+            forcing = max(solver.tolerance, solver.first_forcing)
         line_search = solver.line_search or any(t.needs_line_search for t in terms)
         # prescribed motion still short of its goal gets 3 × newton_iterations more steps
         converged, cap = False, solver.newton_iterations if cap is None else cap
@@ -406,7 +411,7 @@ class NewtonIntegrator(Integrator):
             if prescribed:
                 for term in terms:
                     term.prescribe(x, dx, rhs)
-            operator = next((t.operator for t in terms if t.operator is not NO_PAIRS), NO_PAIRS)
+            operator = next((t.operator for t in terms if t.operator is not None), None)
             # prescribed motion still short of its goal puts the barrier's coupling −H_cX ΔX
             # (up to 1e22·m/ĥ² an entry) into the right-hand side, and one PCG iteration
             # that resolves that part alone meets a loose relative tolerance: the cloth

@@ -24,7 +24,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from clothtool.sim.linalg.pairs import NO_PAIRS
 from clothtool.sim.solve.integrator import gravity_potential, mass_weighted
 
 
@@ -52,7 +51,7 @@ class Stage:
 class Term:
     """A term with no matrix-free part, no CCD, nothing prescribed, nothing lagged."""
 
-    operator = NO_PAIRS
+    operator = None  # contact's pair operator (clothtool.sim.linalg.pairs)
     needs_line_search = False  # every Newton step is line-searched (a barrier)
     starts_at_state = False  # Newton must start at the state's positions (collision-free)
 
