@@ -194,15 +194,20 @@ def block_jacobi(values, diag, kind, floor, inv):
 
 
 @njit(cache=True, inline="always")
+def _minus_block3(a, xj, t0, t1, t2):
+    """(t0, t1, t2) − a xj for one 3×3 block a."""
+    x0, x1, x2 = xj[0], xj[1], xj[2]
+    t0 -= a[0, 0] * x0 + a[0, 1] * x1 + a[0, 2] * x2
+    t1 -= a[1, 0] * x0 + a[1, 1] * x1 + a[1, 2] * x2
+    t2 -= a[2, 0] * x0 + a[2, 1] * x1 + a[2, 2] * x2
+    return t0, t1, t2
+
+
+@njit(cache=True, inline="always")
 def _row_product3(first, stop, col, values, x, t0, t1, t2):
     """(t0, t1, t2) − Σ A_ij x_j over the blocks first ≤ s < stop of a row, in ascending order."""
     for s in range(first, stop):
-        a = values[s]
-        j = col[s]
-        x0, x1, x2 = x[j, 0], x[j, 1], x[j, 2]
-        t0 -= a[0, 0] * x0 + a[0, 1] * x1 + a[0, 2] * x2
-        t1 -= a[1, 0] * x0 + a[1, 1] * x1 + a[1, 2] * x2
-        t2 -= a[2, 0] * x0 + a[2, 1] * x1 + a[2, 2] * x2
+        t0, t1, t2 = _minus_block3(values[s], x[col[s]], t0, t1, t2)
     return t0, t1, t2
 
 
@@ -212,12 +217,7 @@ def _row_product3_down(first, stop, col, values, x, t0, t1, t2):
     count from zero: a range with a negative step made the backward sweep a fifth slower)."""
     for k in range(stop - first):
         s = stop - 1 - k
-        a = values[s]
-        j = col[s]
-        x0, x1, x2 = x[j, 0], x[j, 1], x[j, 2]
-        t0 -= a[0, 0] * x0 + a[0, 1] * x1 + a[0, 2] * x2
-        t1 -= a[1, 0] * x0 + a[1, 1] * x1 + a[1, 2] * x2
-        t2 -= a[2, 0] * x0 + a[2, 1] * x1 + a[2, 2] * x2
+        t0, t1, t2 = _minus_block3(values[s], x[col[s]], t0, t1, t2)
     return t0, t1, t2
 
 
