@@ -19,9 +19,9 @@ Kernels are numba on scalars and 3-tuples (no heap allocation in per-element loo
 import math
 
 import numpy as np
-from numba import njit, prange
+from numba import prange
 
-from clothtool import numba_setup  # noqa: F401  (threading layer, before the first kernel)
+from clothtool.numba_setup import njit
 from clothtool.vec3 import cross, dot, load, scale, sub
 
 DEGENERATE_TOL = 1e-8

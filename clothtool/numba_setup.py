@@ -12,6 +12,9 @@ Start-up: loading numba's CPU target imports ``numba.np.arraymath``, which impor
 ``np.convolve`` may call BLAS. clothtool's kernels use neither, so the target is
 loaded here with that one import hidden; ``np.dot`` and ``np.linalg`` in kernels
 still find BLAS, since their own check runs later, when they are compiled.
+
+Kernels: every module declares its kernels with this module's :func:`njit`, so these
+settings hold before the first one compiles.
 """
 
 import os
@@ -38,3 +41,11 @@ def _load_cpu_target():
 
 
 _load_cpu_target()
+
+
+def njit(**options):
+    """``numba.njit(**options)`` without the C-callable wrapper numba builds for each function
+    (``no_cfunc_wrapper``): it serves only a function passed as a first-class value or through
+    ``cfunc``, which no kernel here is, and costs each compiled function about 12 ms of a first
+    run's compilation (62 functions on the hanging sheet's default path)."""
+    return numba.njit(no_cfunc_wrapper=True, **options)

@@ -2,7 +2,8 @@
 inverse of a symmetric positive semi-definite 3×3 block."""
 
 import numpy as np
-from numba import njit
+
+from clothtool.numba_setup import njit
 
 
 @njit(cache=True)

@@ -23,13 +23,13 @@ Where bit 1, 2 or 4 is set the float fields are NaN.
 """
 
 import numpy as np
-from numba import njit, prange
+from numba import prange
 
-from clothtool import numba_setup  # noqa: F401  (threading layer, before the first kernel)
 from clothtool.analysis import kernel_plan
 from clothtool.fields import FIELDS_2D, NAMES_2D, parse_fields
 from clothtool.analysis.kernel_plan import Slots, fill_nan
 from clothtool.geometry import DEGENERATE, DEGENERATE_TOL, NONFINITE, tangent_edge_matrix
+from clothtool.numba_setup import njit
 
 FLAG_REFERENCE_DEGENERATE = np.uint8(1)
 FLAG_DEFORMED_DEGENERATE = DEGENERATE

@@ -11,11 +11,12 @@ wrapped to (−π, π].
 import math
 
 import numpy as np
-from numba import njit, prange
+from numba import prange
 
 from clothtool.analysis.deformation2d import (FLAG_DEFORMED_DEGENERATE, FLAG_NONFINITE,
                                               FLAG_REFERENCE_DEGENERATE)
 from clothtool.geometry import DEGENERATE_TOL, angle_of_normals, hinge_normals
+from clothtool.numba_setup import njit
 from clothtool.vec3 import dot, load, sub
 
 

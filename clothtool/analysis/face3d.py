@@ -18,11 +18,12 @@ test and the flags are the 2D kernel's own, so bits 0–2 agree with /face/flags
 """
 
 import numpy as np
-from numba import njit, prange
+from numba import prange
 
 from clothtool.analysis.deformation2d import (FLAG_DEFORMED_DEGENERATE, FLAG_NONFINITE,
                                               FLAG_REFERENCE_DEGENERATE, polar_2x2, principal_2x2)
 from clothtool.geometry import DEGENERATE_TOL, tangent_edge_matrix
+from clothtool.numba_setup import njit
 
 
 @njit(cache=True, inline="always")

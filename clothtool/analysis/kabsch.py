@@ -19,10 +19,10 @@ Kabsch optimum *with* the reflection fix on the smallest singular direction, and
 import math
 
 import numpy as np
-from numba import njit, prange
+from numba import prange
 
-from clothtool import numba_setup  # noqa: F401  (threading layer, before the first kernel)
 from clothtool.analysis.symeig import adjugate_eigenvector4, jacobi_eigvals_batch
+from clothtool.numba_setup import njit
 
 REF_DEGENERATE = 1  # flag bit 0: reference ring degenerate
 DEF_DEGENERATE = 2  # flag bit 1: deformed ring degenerate

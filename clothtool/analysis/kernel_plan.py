@@ -13,7 +13,8 @@ requested fields are computed from.
 """
 
 import numpy as np
-from numba import njit
+
+from clothtool.numba_setup import njit
 
 
 class Slots:

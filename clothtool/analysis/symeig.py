@@ -23,7 +23,8 @@ eigenvalue, where the cofactors' rounding (the second term) is the larger.
 import math
 
 import numpy as np
-from numba import njit
+
+from clothtool.numba_setup import njit
 
 MAX_SWEEPS = 30
 _EPS2 = 2.0**-106  # (2⁻⁵³)²

@@ -33,12 +33,12 @@ output buffer per dtype, a slot per field of the registry.
 import math
 
 import numpy as np
-from numba import njit, prange
+from numba import prange
 
-from clothtool import numba_setup  # noqa: F401  (threading layer, before the first kernel)
 from clothtool.analysis import kernel_plan
 from clothtool.fields import FIELDS_TET, NAMES_TET
 from clothtool.analysis.kernel_plan import Slots, fill_nan
+from clothtool.numba_setup import njit
 from clothtool.vec3 import cross, dot, load, scale, sub
 
 DEGENERATE_TOL = 1e-8

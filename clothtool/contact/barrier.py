@@ -53,9 +53,9 @@ dhat_self, dhat_obstacle), see :func:`pair_geometry`.
 """
 
 import numpy as np
-from numba import njit
 
 from clothtool.contact.distance import cross_squared, edge_edge_weights, point_triangle_weights
+from clothtool.numba_setup import njit
 
 MOLLIFIER_SCALE = 1e-3
 POINT_TRIANGLE, EDGE_EDGE, POINT_PLANE = 0, 1, 2

@@ -13,10 +13,10 @@ collider (``obstacle``) elements, and cloth–cloth pairs only with ``self_conta
 """
 
 import numpy as np
-from numba import njit
 
 from clothtool.contact.barrier import EDGE_EDGE, POINT_PLANE, POINT_TRIANGLE
 from clothtool.contact.distance import edge_edge_weights, point_triangle_weights
+from clothtool.numba_setup import njit
 
 MAX_CELLS_PER_BOX = 8.0  # cells of the grid per binned box at most (grows the cell size)
 

@@ -13,11 +13,11 @@ l_p = ‖δp − δo‖(1 + ‖δn‖) + (‖p − o‖ + ‖δp − δo‖)‖�
 """
 
 import numpy as np
-from numba import njit
 
 from clothtool.contact.barrier import (EDGE_EDGE, POINT_PLANE, pair_distance, pair_radius,
                                        pair_thickness)
 from clothtool.contact.broadphase import motion_bound
+from clothtool.numba_setup import njit
 
 ETA = 0.9
 MAX_ITERATIONS = 2000

@@ -10,7 +10,8 @@ theorem ∇_{x_k} d² = 2 w_k r in every region, the weights held fixed.
 """
 
 import numpy as np
-from numba import njit
+
+from clothtool.numba_setup import njit
 
 
 @njit(cache=True, inline="always")

@@ -42,7 +42,8 @@ resolve, are where the twisted sheet's Newton steps oscillate.
 """
 
 import numpy as np
-from numba import njit
+
+from clothtool.numba_setup import njit
 
 
 @njit(cache=True)

@@ -16,9 +16,9 @@ floating-point input. Pairs sharing a vertex are not tested (as in IPC).
 from fractions import Fraction
 
 import numpy as np
-from numba import njit
 
 from clothtool.contact.broadphase import box_pairs, element_boxes, mesh_edges, vertex_boxes
+from clothtool.numba_setup import njit
 
 ERRBOUND_A = (7.0 + 56.0 * 2.0**-53) * 2.0**-53
 CCW_ERRBOUND_A = (3.0 + 16.0 * 2.0**-53) * 2.0**-53

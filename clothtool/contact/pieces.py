@@ -32,7 +32,8 @@ at its cap.
 """
 
 import numpy as np
-from numba import njit
+
+from clothtool.numba_setup import njit
 
 # the share of newton_tolerance a piece's rigid velocity change may take: the 45° cloth-on-
 # cloth slide of the friction benchmark came out 3.8 % slow at 1, 0.3 % at 0.3 (unchanged at

@@ -9,7 +9,8 @@ The implicit method puts every collider into its contact barrier instead
 """
 
 import numpy as np
-from numba import njit
+
+from clothtool.numba_setup import njit
 
 
 

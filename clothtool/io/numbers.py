@@ -10,7 +10,8 @@ other byte) makes :func:`parse_rows` return None, and the caller takes ``np.from
 """
 
 import numpy as np
-from numba import njit
+
+from clothtool.numba_setup import njit
 
 _POW10 = np.array([10.0 ** k for k in range(23)])  # exact doubles
 _MAX_EXACT = 1 << 53

@@ -11,7 +11,8 @@ overflows (values near the underflow limit) falls back to sorting everything.
 """
 
 import numpy as np
-from numba import njit
+
+from clothtool.numba_setup import njit
 
 BINS = 4096
 

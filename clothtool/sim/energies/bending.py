@@ -26,10 +26,10 @@ onto a line) would swamp the system matrix in rounding.
 """
 
 import numpy as np
-from numba import njit
 
 from clothtool.geometry import (dihedral_angle, dihedral_angle_gradient, dihedral_angle_hessian,
                                 hinge_normals)
+from clothtool.numba_setup import njit
 from clothtool.vec3 import cross, dot, load, scale, sub
 
 THIN = 1e-4  # a hinge triangle this much lower than the shared edge is a sliver: no bending

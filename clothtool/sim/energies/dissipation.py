@@ -37,9 +37,9 @@ the same pass as the membrane's W (:func:`strain_assemble`): both read the same 
 """
 
 import numpy as np
-from numba import njit
 
 from clothtool.geometry import dihedral_angles
+from clothtool.numba_setup import njit
 from clothtool.sim.energies.bending import dihedral_assemble, dihedral_total_energy
 from clothtool.sim.energies.membrane import (add_triangle, deformation, deformation_gradient,
                                              membrane_density, membrane_total_energy,

@@ -30,8 +30,8 @@ The projected element Hessian is Bᵀ H_F⁺ B with B = ∂vec F/∂x, PSD becau
 """
 
 import numpy as np
-from numba import njit
 
+from clothtool.numba_setup import njit
 from clothtool.vec3 import add, dot, load, scale, sub
 
 EPS = 1e-12

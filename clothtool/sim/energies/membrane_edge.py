@@ -47,8 +47,8 @@ every cell's C_e and its stresses (:func:`edge_stresses`), then visits the trian
 """
 
 import numpy as np
-from numba import njit
 
+from clothtool.numba_setup import njit
 from clothtool.sim.energies.membrane import add_triangle, deformation, to_vertices
 from clothtool.sim.energies.membrane_nodal import clamped_stress
 from clothtool.vec3 import dot, load

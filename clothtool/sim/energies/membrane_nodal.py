@@ -38,8 +38,8 @@ a vertex with its two-ring.
 """
 
 import numpy as np
-from numba import njit
 
+from clothtool.numba_setup import njit
 from clothtool.sim.energies.membrane import deformation
 from clothtool.vec3 import dot, load
 

@@ -64,7 +64,8 @@ time steppers' Newton steps with it; static equilibrium adds C to its direct sol
 """
 
 import numpy as np
-from numba import njit
+
+from clothtool.numba_setup import njit
 
 SEEN = 0.25  # a singular value of B_v/A_v below this: a component vertex v hands over
 PRUNE = 1e-10  # |Q_ij| ≤ PRUNE·√(Q_ii Q_jj) is rounding of a cancelled entry: dropped

@@ -38,7 +38,8 @@ The constraint kernels of ``pbd``, ``xpbd`` and ``projective`` on this network a
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
+
+from clothtool.numba_setup import njit
 
 EPS = 1e-12
 

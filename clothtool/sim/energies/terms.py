@@ -23,8 +23,8 @@ reaches every method built on it.
 """
 
 import numpy as np
-from numba import njit
 
+from clothtool.numba_setup import njit
 from clothtool.sim.energies.bending import (dihedral_assemble, dihedral_total_energy,
                                    quadratic_gradient)
 from clothtool.sim.linalg.blocks import scatter_blocks

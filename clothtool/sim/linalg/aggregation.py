@@ -13,7 +13,8 @@ is done once per mesh.
 """
 
 import numpy as np
-from numba import njit
+
+from clothtool.numba_setup import njit
 
 
 @njit(cache=True)

@@ -12,7 +12,8 @@ keep runs bit-for-bit deterministic.
 """
 
 import numpy as np
-from numba import njit
+
+from clothtool.numba_setup import njit
 
 
 

@@ -5,9 +5,9 @@ directions, it keeps the pinned components of a PCG solution at their start valu
 moving pin's prescribed motion, zero for a fixed one).
 """
 
-from numba import njit
-
 FREE, PINNED = 0, 1  # constraint kind of a vertex
+
+from clothtool.numba_setup import njit
 
 
 @njit(cache=True)

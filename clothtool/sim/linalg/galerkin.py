@@ -18,8 +18,8 @@ entry, and a node's own rotations and shears do not mix (Y_a = diag(ρ_a/ρ_A I�
 """
 
 import numpy as np
-from numba import njit
 
+from clothtool.numba_setup import njit
 from clothtool.sim.linalg.filter import PINNED
 from clothtool.sim.linalg.modes import M
 

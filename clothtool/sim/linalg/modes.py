@@ -31,7 +31,8 @@ vertices and one over each coarse level's nodes.
 """
 
 import numpy as np
-from numba import njit
+
+from clothtool.numba_setup import njit
 
 M = 8  # unknowns per coarse node: 3 translations, 3 rotations, 2 in-plane shears
 

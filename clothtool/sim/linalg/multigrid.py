@@ -21,8 +21,8 @@ smooth error that Jacobi cannot reach:
 """
 
 import numpy as np
-from numba import njit
 
+from clothtool.numba_setup import njit
 from clothtool.sim.linalg.filter import FREE, PINNED
 from clothtool.sim.linalg.aggregation import coarsen
 from clothtool.sim.linalg.blocks import BlockPattern

@@ -26,8 +26,8 @@ from one step to the next, so a resumed run builds the same ones as an uninterru
 """
 
 import numpy as np
-from numba import njit
 
+from clothtool.numba_setup import njit
 from clothtool.sim.linalg.aggregation import coarsen, transposes
 from clothtool.sim.linalg.blocks import BlockPattern
 from clothtool.sim.linalg.galerkin import galerkin, pinned_mask

@@ -11,7 +11,8 @@ The operator is the tuple (rows (K, 4) int64, weights (K, 4), blocks (K, 3, 3), 
 """
 
 import numpy as np
-from numba import njit
+
+from clothtool.numba_setup import njit
 
 
 def pair_operator(rows, weights, blocks, count, n):

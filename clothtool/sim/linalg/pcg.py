@@ -17,8 +17,8 @@ numba kernels underneath take the plain arrays these unpack to. A pair operator
 """
 
 import numpy as np
-from numba import njit
 
+from clothtool.numba_setup import njit
 from clothtool.sim.linalg.filter import apply_filter
 from clothtool.sim.linalg.blocks import block_multiply, residual
 from clothtool.sim.linalg.multigrid import COARSEST, Hierarchy, vcycle

@@ -13,8 +13,8 @@ their unknowns: with a filtered right-hand side those stay zero, as the filter w
 """
 
 import numpy as np
-from numba import njit
 
+from clothtool.numba_setup import njit
 from clothtool.sim.linalg.filter import PINNED
 from clothtool.sim.linalg.modes import M
 from clothtool.vec3 import spd_inverse3

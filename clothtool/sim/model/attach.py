@@ -18,10 +18,10 @@ pin is: a prescribed part of the Newton step, collision-free):
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
 
 from clothtool.contact.distance import point_triangle_weights
 from clothtool.errors import InputError
+from clothtool.numba_setup import njit
 
 
 @dataclass(frozen=True)

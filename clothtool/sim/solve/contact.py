@@ -40,7 +40,6 @@ the half-quadratic bound of the friction (:func:`~clothtool.contact.friction.bou
 """
 
 import numpy as np
-from numba import njit
 
 from clothtool.contact.barrier import (POINT_PLANE, barrier_blocks, contact_assemble,
                                        contact_energy, pair_distance, pair_thickness)
@@ -52,6 +51,7 @@ from clothtool.contact.friction import (bound_reversed_slips, bound_slow_slips, 
 from clothtool.contact.intersect import intersecting_pairs
 from clothtool.contact.pieces import cloth_pieces, slide_velocity
 from clothtool.errors import InputError, NumericalError
+from clothtool.numba_setup import njit
 from clothtool.sim.linalg.pairs import pair_operator, pairs_add_diagonal, pairs_coupling
 
 KAPPA = 1.0  # barrier stiffness in units of max(m̄/h², k) per d̂²

@@ -15,9 +15,8 @@ The methods and the config features each supports are listed in one registry,
 
 from dataclasses import dataclass
 
-from numba import njit
-
 from clothtool.contact.projection import resolve_collisions
+from clothtool.numba_setup import njit
 from clothtool.sim.energies.membrane import max_principal_stretch
 
 

@@ -7,8 +7,8 @@
 """
 
 import numpy as np
-from numba import njit
 
+from clothtool.numba_setup import njit
 from clothtool.sim.energies.springs import EPS
 
 

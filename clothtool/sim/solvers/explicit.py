@@ -27,8 +27,8 @@ steps per frame (the stats' ``substeps`` column counts internal steps).
 import math
 
 import numpy as np
-from numba import njit
 
+from clothtool.numba_setup import njit
 from clothtool.sim.energies.bending import dihedral_gradient, quadratic_gradient, quadratic_product
 from clothtool.contact.projection import resolve_collisions
 from clothtool.sim.energies.energy import FemElastic

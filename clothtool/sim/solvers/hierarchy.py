@@ -16,7 +16,8 @@ while the coarse level is at most ``SHRINK`` times the finer one and has more th
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
+
+from clothtool.numba_setup import njit
 
 K_PARENTS = 2
 SHRINK = 0.7

@@ -44,9 +44,9 @@ contact forces in the sweeps, no friction).
 """
 
 import numpy as np
-from numba import njit
 
 from clothtool.geometry import dihedral_angle_gradient
+from clothtool.numba_setup import njit
 from clothtool.sim.energies.bending import quadratic_element
 from clothtool.sim.energies.energy import FemElastic
 from clothtool.sim.solve.integrator import Integrator, StepReport
