@@ -21,7 +21,7 @@ import math
 import numpy as np
 from numba import prange
 
-from clothtool.numba_setup import njit
+from clothtool.numba_setup import njit, njit_inner
 from clothtool.vec3 import cross, dot, load, scale, sub
 
 DEGENERATE_TOL = 1e-8
@@ -93,7 +93,7 @@ def angle_of_normals(e, nk, nl):
     return math.atan2(dot(cross(nk, nl), e) / math.sqrt(dot(e, e)), dot(nk, nl))
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def _hinge_degenerate(ll, nk, nl):
     limit = HINGE_TOL * HINGE_TOL * ll * ll
     return ll == 0.0 or dot(nk, nk) <= limit or dot(nl, nl) <= limit
@@ -141,13 +141,13 @@ def dihedral_angle_gradient(xi, xj, xk, xl, grad):
     return angle_of_normals(e, nk, nl)
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def _skew(a):
     """[a]× with [a]× v = a × v."""
     return np.array([[0.0, -a[2], a[1]], [a[2], 0.0, -a[0]], [-a[1], a[0], 0.0]])
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def _normal_gradient_jacobian(n, length, e_hat, d_n, jac):
     """Jacobian (3×12) of g = −L N/‖N‖² given ∂N/∂x_v = d_n[v] (3×3 each).
 
@@ -164,7 +164,7 @@ def _normal_gradient_jacobian(n, length, e_hat, d_n, jac):
         jac[:, 3 * v:3 * v + 3] = block
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def dihedral_angle_hessian(xi, xj, xk, xl, hess):
     """Exact ∇²θ (12, 12), order (i, j, k, l), the derivative of :func:`dihedral_angle_gradient`'s
     formulas (Tamstorf & Grinspun 2013 give the same in another notation); xi… are (3,) arrays."""

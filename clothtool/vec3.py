@@ -3,36 +3,36 @@ inverse of a symmetric positive semi-definite 3×3 block."""
 
 import numpy as np
 
-from clothtool.numba_setup import njit
+from clothtool.numba_setup import njit, njit_inner
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def load(a, i):
     """Row i of an (N, 3) array as a tuple."""
     return (a[i, 0], a[i, 1], a[i, 2])
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def sub(a, b):
     return (a[0] - b[0], a[1] - b[1], a[2] - b[2])
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def add(a, b):
     return (a[0] + b[0], a[1] + b[1], a[2] + b[2])
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def scale(s, a):
     return (s * a[0], s * a[1], s * a[2])
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def dot(a, b):
     return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def cross(a, b):
     return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
 
@@ -42,7 +42,7 @@ ROUNDING = 64 * 2.0**-52  # relative size of a 3×3 block's rounding noise in it
 JACOBI_SWEEPS = 12  # cyclic Jacobi sweeps at most (3×3 converges quadratically in 3–5)
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def copy_into(a, out):
     """out[:, :] = a for 2-D arrays of one shape, element by element: a slice assignment
     compiles numba's shape-mismatch message (string formatting, about 5 s of CPU in a fresh

@@ -16,11 +16,11 @@ from numba import prange
 from clothtool.analysis.deformation2d import (FLAG_DEFORMED_DEGENERATE, FLAG_NONFINITE,
                                               FLAG_REFERENCE_DEGENERATE)
 from clothtool.geometry import DEGENERATE_TOL, angle_of_normals, hinge_normals
-from clothtool.numba_setup import njit
+from clothtool.numba_setup import njit, njit_inner
 from clothtool.vec3 import dot, load, sub
 
 
-@njit(cache=True, error_model="numpy")
+@njit_inner(cache=True, error_model="numpy")
 def _bend(x, i, j, k0, k1, tol):
     """Signed bending angle θ of edge (i, j) and whether either triangle is degenerate
     (‖N‖ ≤ tol·(its longest edge)², as in the 2D analysis)."""

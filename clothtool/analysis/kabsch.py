@@ -22,7 +22,7 @@ import numpy as np
 from numba import prange
 
 from clothtool.analysis.symeig import adjugate_eigenvector4, jacobi_eigvals_batch
-from clothtool.numba_setup import njit
+from clothtool.numba_setup import njit, njit_inner
 
 REF_DEGENERATE = 1  # flag bit 0: reference ring degenerate
 DEF_DEGENERATE = 2  # flag bit 1: deformed ring degenerate
@@ -62,7 +62,7 @@ def horn_matrix(h, scale, a, k):
     a[2, 3, k] = a[3, 2, k] = syz + szy
 
 
-@njit(cache=True, error_model="numpy")
+@njit_inner(cache=True, error_model="numpy")
 def top_quaternion(a, orig, k, b, q):
     """After Jacobi (eigenvalues) on Horn's matrix k (``orig`` holds it unchanged): the unit
     quaternion of the largest eigenvalue into ``q`` (4,), from adj(N − λI); ``b`` is 4×4 scratch.
@@ -79,7 +79,7 @@ def top_quaternion(a, orig, k, b, q):
     return a[top, top, k] - second
 
 
-@njit(cache=True, error_model="numpy")
+@njit_inner(cache=True, error_model="numpy")
 def quaternion_matrix(q, rot):
     """The rotation matrix of the unit quaternion q = (w, x, y, z) into ``rot`` (3×3); returns
     its angle 2·atan2(‖(x, y, z)‖, |w|) ∈ [0, π] (accurate near 0 and π, unlike arccos)."""
@@ -96,7 +96,7 @@ def quaternion_matrix(q, rot):
     return 2.0 * math.atan2(math.sqrt(x * x + y * y + z * z), abs(w))
 
 
-@njit(cache=True, error_model="numpy")
+@njit_inner(cache=True, error_model="numpy")
 def _ring_degenerate(a00, a11, a22, a01, a02, a12):
     """Coincident or collinear points, from the scatter matrix A = Σ p pᵀ (see RING_TOL)."""
     tr = a00 + a11 + a22
@@ -104,7 +104,7 @@ def _ring_degenerate(a00, a11, a22, a01, a02, a12):
     return i2 <= RING_TOL * RING_TOL * tr * tr
 
 
-@njit(cache=True, error_model="numpy")
+@njit_inner(cache=True, error_model="numpy")
 def _ring_matrix(i, x_ref, x_def, offsets, neighbours, h, a, k, mean):
     """Horn's N(H)/√(Σ‖p‖² Σ‖q‖²) of the ring of vertex i into ``a[:, :, k]`` (zeros for a flagged
     ring) and the ring means into ``mean`` (6,). Returns the ring's flags.
@@ -175,7 +175,7 @@ def _ring_matrix(i, x_ref, x_def, offsets, neighbours, h, a, k, mean):
     return flags
 
 
-@njit(cache=True, error_model="numpy")
+@njit_inner(cache=True, error_model="numpy")
 def _ring_residual(i, x_ref, x_def, offsets, neighbours, mean, rot):
     """√(mean over the ring of ‖R p − q‖²), summed directly (no cancellation)."""
     lo, hi = offsets[i], offsets[i + 1]

@@ -24,7 +24,7 @@ import math
 
 import numpy as np
 
-from clothtool.numba_setup import njit
+from clothtool.numba_setup import njit, njit_inner
 
 MAX_SWEEPS = 30
 _EPS2 = 2.0**-106  # (2⁻⁵³)²
@@ -85,7 +85,7 @@ def jacobi_eigvals_batch(a):
     return MAX_SWEEPS
 
 
-@njit(cache=True, error_model="numpy")
+@njit_inner(cache=True, error_model="numpy")
 def _minor3(b, skip_row, skip_col):
     """Determinant of the 4×4 ``b`` without row ``skip_row`` and column ``skip_col``."""
     r0, r1, r2 = int(skip_row == 0), 1 + int(skip_row <= 1), 2 + int(skip_row <= 2)

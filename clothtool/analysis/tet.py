@@ -38,7 +38,7 @@ from numba import prange
 from clothtool.analysis import kernel_plan
 from clothtool.fields import FIELDS_TET, NAMES_TET
 from clothtool.analysis.kernel_plan import Slots, fill_nan
-from clothtool.numba_setup import njit
+from clothtool.numba_setup import njit, njit_inner
 from clothtool.vec3 import cross, dot, load, scale, sub
 
 DEGENERATE_TOL = 1e-8
@@ -59,7 +59,7 @@ _EPS2 = 2.0**-106  # (2⁻⁵³)²
 _TINY = 1e-150  # keeps u > 0 when a_pq = 0 and a_pp = a_qq (matrices are scaled to unit trace)
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def edge_matrix(x, tets, k, tol):
     """Columns d1, d2, d3 of D of tetrahedron k, det D and a status: 0, degenerate
     (|det D| ≤ tol·L³) or non-finite."""
@@ -78,7 +78,7 @@ def edge_matrix(x, tets, k, tol):
     return d1, d2, d3, det, np.uint8(0)
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def _store_rest(k, d1, d2, d3, det, flag, dinv, flags):
     """D_r⁻¹ of tetrahedron k (rows (d2×d3, d3×d1, d1×d2)/det D) and its flag (a degenerate
     tetrahedron is bit 0 here)."""
@@ -119,7 +119,7 @@ def rest_from_positions(x, tets, tol=DEGENERATE_TOL):
 _PAIRS = ((0, 1, 3, 4, 5, 0, 1), (0, 2, 4, 3, 5, 0, 2), (1, 2, 5, 3, 4, 1, 2))
 
 
-@njit(cache=True, error_model="numpy")
+@njit_inner(cache=True, error_model="numpy")
 def jacobi_block(c, v, n):
     """Eigenvectors of the symmetric 3×3 matrices ``c[:, i]`` (rows c00, c11, c22, c01, c02,
     c12; scaled to about unit norm), i < n, by cyclic Jacobi: afterwards ``v[3j:3j + 3, i]`` is
@@ -162,7 +162,7 @@ def jacobi_block(c, v, n):
                     v[3 * q + j, i] = sn * vp + cs * vq
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def polar_from_eigenvectors(f0, f1, f2, v0, v1, v2):
     """The invertible polar split of F (columns f0, f1, f2) from unit eigenvectors v0, v1, v2
     of C (see the module doc). Returns (λ1, λ2, λ3), the columns v1, v2, v3 of V (sorted,
@@ -188,14 +188,14 @@ def polar_from_eigenvectors(f0, f1, f2, v0, v1, v2):
     return s0, s1, lam2, v0, v1, v2, w0, w1, w2
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def _times(f0, f1, f2, v):
     """F·v for F given by its columns."""
     return (f0[0] * v[0] + f1[0] * v[1] + f2[0] * v[2], f0[1] * v[0] + f1[1] * v[1] + f2[1] * v[2],
             f0[2] * v[0] + f1[2] * v[1] + f2[2] * v[2])
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def _column(g1, g2, g3, dinv, k, j):
     """Column j of F = G·D_r⁻¹: g1·D⁻¹[0, j] + g2·D⁻¹[1, j] + g3·D⁻¹[2, j]."""
     a, b, c = dinv[k, 0, j], dinv[k, 1, j], dinv[k, 2, j]
@@ -287,7 +287,7 @@ def _write_R(out, i, v0, v1, v2, w0, w1, w2):
 
 
 # ---------------------------------------------------------------- the kernels
-@njit(cache=True)
+@njit_inner(cache=True)
 def _tet_block(lo, n, x, tets, dinv, ref_flags, tol, starts, needs, out, out_flags, next_dinv,
                next_flags):
     """The requested fields of tetrahedra lo … lo + n − 1, whose eigenproblems are solved

@@ -55,7 +55,7 @@ dhat_self, dhat_obstacle), see :func:`pair_geometry`.
 import numpy as np
 
 from clothtool.contact.distance import cross_squared, edge_edge_weights, point_triangle_weights
-from clothtool.numba_setup import njit
+from clothtool.numba_setup import njit, njit_inner
 
 MOLLIFIER_SCALE = 1e-3
 POINT_TRIANGLE, EDGE_EDGE, POINT_PLANE = 0, 1, 2
@@ -101,7 +101,7 @@ def mollifier(c, eps):
     return (2.0 - q) * q, (2.0 - 2.0 * q) / eps
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def point_plane_weights(x, p, o, t, w):
     """Fill w (4,) for vertex p and the plane through o with unit normal t − o; returns
     the squared distance when p is in front of the plane, 0 (contact) when it is not."""
@@ -134,7 +134,7 @@ def pair_distance(x, st, w, r):
     return d2
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def pair_radius(st, radius):
     """R of a pair: its point's radius (vertex–triangle) or its edges' (edge–edge)."""
     if st[4] == EDGE_EDGE:
@@ -156,7 +156,7 @@ def pair_thickness(st, geometry):
     return xi_self + big_r, dhat_self, big_r
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def mollifier_threshold(rest, st):
     """ε = 10⁻³ ‖ē_a‖² ‖ē_b‖² of an edge–edge pair from rest positions."""
     la = 0.0
@@ -167,7 +167,7 @@ def mollifier_threshold(rest, st):
     return MOLLIFIER_SCALE * la * lb
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def _mollified(x, st, geometry, big_r):
     """(m, m') of a pair: IPC's mollifier for edge–edge pairs without a radius, else (1, 0)."""
     if st[4] != EDGE_EDGE or big_r > 0.0:
@@ -176,7 +176,7 @@ def _mollified(x, st, geometry, big_r):
                      mollifier_threshold(geometry[2], st))
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def barrier_argument(x, st, geometry, w, r):
     """(d², u = d² − ξ², û = d̂ (2ξ + d̂), d̂, R) of a pair (:func:`pair_thickness`,
     :func:`pair_distance` filling ``w`` and ``r``): its barrier acts where 0 < u < û."""
@@ -252,7 +252,7 @@ def contact_assemble(x, stencils, geometry, kappa, grad, active, weights, normal
     return total, n_act, gap
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def tilt_weights(x, st, w, radius, out):
     """The tilt terms t_k (out (2, 4)) of a pair whose point (vertex–triangle) or one edge
     (edge–edge) has a radius: the in-plane gradients of the other side's barycentric
@@ -301,7 +301,7 @@ def tilt_weights(x, st, w, radius, out):
             out[1, 1 + j] = grad[0] * t2[0] + grad[1] * t2[1] + grad[2] * t2[2]
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def _add_cross_gradient(x, st, scale, grad):
     """grad += scale ∇c for c = ‖u × v‖², u = x1 − x0, v = x3 − x2:
     ∂c/∂u = 2(u‖v‖² − v(u·v)), ∂c/∂v = 2(v‖u‖² − u(u·v))."""

@@ -16,12 +16,12 @@ import numpy as np
 
 from clothtool.contact.barrier import EDGE_EDGE, POINT_PLANE, POINT_TRIANGLE
 from clothtool.contact.distance import edge_edge_weights, point_triangle_weights
-from clothtool.numba_setup import njit
+from clothtool.numba_setup import njit, njit_inner
 
 MAX_CELLS_PER_BOX = 8.0  # cells of the grid per binned box at most (grows the cell size)
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def vertex_boxes(x, dx, rho):
     """(lo, hi), each (N, 3): the boxes of x_v and x_v + dx_v, grown by rho_v."""
     lo = np.empty_like(x)
@@ -34,7 +34,7 @@ def vertex_boxes(x, dx, rho):
     return lo, hi
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def element_boxes(vlo, vhi, elements):
     """(lo, hi), each (M, 3): the union of the vertex boxes of each element (M, width)."""
     m = elements.shape[0]
@@ -52,7 +52,7 @@ def element_boxes(vlo, vhi, elements):
     return lo, hi
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def _mean_extent(lo, hi):
     total = 0.0
     for e in range(lo.shape[0]):
@@ -60,7 +60,7 @@ def _mean_extent(lo, hi):
     return total / max(lo.shape[0], 1)
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def _cell_range(lo, hi, origin, cell, dims):
     """Inclusive cell index ranges (i0, i1, j0, j1, k0, k1) of a box, clipped to the grid."""
     i0 = max(int(np.floor((lo[0] - origin[0]) / cell)), 0)
@@ -72,7 +72,7 @@ def _cell_range(lo, hi, origin, cell, dims):
     return i0, i1, j0, j1, k0, k1
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def build_grid(lo, hi, cell):
     """Bin boxes (lo, hi) into cells of size ≥ ``cell``:
     (origin, cell, dims, start, items, item_lo, item_hi, item_cell).
@@ -133,7 +133,7 @@ def build_grid(lo, hi, cell):
     return origin, cell, dims, start, items, item_lo, item_hi, item_cell
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def _allowed(a, b, elem_a, elem_b, obstacle, self_contact):
     """IPC's pair filter: no shared vertex, not two colliders, cloth–cloth only with self contact."""
     for i in range(elem_a.shape[1]):
@@ -147,7 +147,7 @@ def _allowed(a, b, elem_a, elem_b, obstacle, self_contact):
     return oa or ob or self_contact
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def box_pairs(alo, ahi, elem_a, blo, bhi, elem_b, r, obstacle, self_contact, same):
     """(K, 2) index pairs (a, b) whose boxes overlap once the a-box grows by r, filtered.
 
@@ -194,7 +194,7 @@ def box_pairs(alo, ahi, elem_a, blo, bhi, elem_b, r, obstacle, self_contact, sam
     return out[:n].copy()
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def motion_bound(dx, rho, st):
     """How much the pair's distance at x can change for vertices anywhere within ρ of their
     motion x + t dx, t ∈ [0, 1]: the relative displacement bound of additive CCD (the
@@ -266,7 +266,7 @@ def contact_stencils(x, dx, rho, points, faces, edges, planes, n_cloth, obstacle
     return stencils[:n].copy()
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def _plane_reach(x, dx, rho, p, o, t):
     """A lower bound of vertex p's distance to the plane (o, t) along the motion, within
     rho of it: the distance at x less the bound of ``ccd``'s vertex–plane rate."""

@@ -17,18 +17,18 @@ import numpy as np
 from clothtool.contact.barrier import (EDGE_EDGE, POINT_PLANE, pair_distance, pair_radius,
                                        pair_thickness)
 from clothtool.contact.broadphase import motion_bound
-from clothtool.numba_setup import njit
+from clothtool.numba_setup import njit, njit_inner
 
 ETA = 0.9
 MAX_ITERATIONS = 2000
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def _norm(v):
     return np.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def _relative_bound(x4, dx4, kind):
     """l_p of a pair (see the module): how fast its distance can shrink along the motion."""
     if kind == POINT_PLANE:

@@ -11,7 +11,7 @@ theorem ∇_{x_k} d² = 2 w_k r in every region, the weights held fixed.
 
 import numpy as np
 
-from clothtool.numba_setup import njit
+from clothtool.numba_setup import njit, njit_inner
 
 
 @njit(cache=True, inline="always")
@@ -105,7 +105,7 @@ def edge_edge_weights(x, a0, a1, b0, b1, w):
     return q0 * q0 + q1 * q1 + q2 * q2
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def cross_squared(x, a0, a1, b0, b1):
     """‖(x_a1 − x_a0) × (x_b1 − x_b0)‖², small when the edges are nearly parallel."""
     u, v = _sub(x, a1, a0), _sub(x, b1, b0)

@@ -43,7 +43,7 @@ resolve, are where the twisted sheet's Newton steps oscillate.
 
 import numpy as np
 
-from clothtool.numba_setup import njit
+from clothtool.numba_setup import njit, njit_inner
 
 
 @njit(cache=True)
@@ -86,7 +86,7 @@ def tangent_basis(n):
     return out
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def _slip(x, base, inv_h, row, w, basis, c, n):
     """v = Tᵀ(Σ_j w_j (x_j − b_j)/ĥ + c) of one pair (cloth vertices j < n only)."""
     r0, r1, r2 = c[0], c[1], c[2]
@@ -257,7 +257,7 @@ def slip_overshoots(y, dy, step, base, h_eff, eps_v, rows, weights, bases, c, co
     return marked
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def _slip_along(y, dy, step, base, inv_h, row, w, basis, c, n):
     """The slip of one pair at y + step·dy."""
     r0, r1, r2 = c[0], c[1], c[2]
@@ -271,7 +271,7 @@ def _slip_along(y, dy, step, base, inv_h, row, w, basis, c, n):
             basis[0, 1] * r0 + basis[1, 1] * r1 + basis[2, 1] * r2)
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def _tangent_block(scale, basis, block):
     """block = scale · T Tᵀ: an isotropic curvature in the pair's tangent plane."""
     for p in range(3):

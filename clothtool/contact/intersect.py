@@ -18,7 +18,7 @@ from fractions import Fraction
 import numpy as np
 
 from clothtool.contact.broadphase import box_pairs, element_boxes, mesh_edges, vertex_boxes
-from clothtool.numba_setup import njit
+from clothtool.numba_setup import njit, njit_inner
 
 ERRBOUND_A = (7.0 + 56.0 * 2.0**-53) * 2.0**-53
 CCW_ERRBOUND_A = (3.0 + 16.0 * 2.0**-53) * 2.0**-53
@@ -50,7 +50,7 @@ def orient3d(a, b, c, d):
     return _certain_sign(det, ERRBOUND_A * permanent)
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def orient2d(a, b, c, i, j):
     """Sign of the 2D orientation of a, b, c in coordinates (i, j), or 0 when uncertain
     (Shewchuk's ccwerrboundA)."""
@@ -60,7 +60,7 @@ def orient2d(a, b, c, i, j):
     return _certain_sign(det, CCW_ERRBOUND_A * (abs(left) + abs(right)))
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def _separated_in_projection(p, q, a, b, c):
     """True when the projections of pq and abc onto a coordinate plane are certainly apart
     (a separating axis among the edge normals of both): then so are pq and abc."""

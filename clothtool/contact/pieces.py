@@ -33,7 +33,7 @@ at its cap.
 
 import numpy as np
 
-from clothtool.numba_setup import njit
+from clothtool.numba_setup import njit, njit_inner
 
 # the share of newton_tolerance a piece's rigid velocity change may take: the 45° cloth-on-
 # cloth slide of the friction benchmark came out 3.8 % slow at 1, 0.3 % at 0.3 (unchanged at
@@ -54,7 +54,7 @@ def cloth_pieces(faces, n):
     return piece.astype(np.int64), int(count)
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def _inverse_psd(a):
     """The pseudo-inverse of a symmetric PSD matrix (eigenvalues below 1e-12 of the largest
     dropped: a piece on a line does not turn about it)."""
@@ -70,7 +70,7 @@ def _inverse_psd(a):
     return out
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def _cross_matrix(r):
     """[r]×, the matrix of r × ·."""
     out = np.zeros((3, 3))
@@ -79,7 +79,7 @@ def _cross_matrix(r):
     return out
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def _held_modes(c_tc):
     """(6, k) orthonormal basis of the rigid modes (a, L α) that the held vertices allow:
     the null space of CᵀC (``c_tc``, 6 × 6), eigenvalues below 1e-10 of the largest."""
@@ -190,7 +190,7 @@ def rigid_accelerations(x, g, mass, piece, count, held):
     return a
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def _solved_norm(d, b):
     """‖d⁻¹ b‖ for a nonsingular 3×3 d (Cramer's rule)."""
     c00 = d[1, 1] * d[2, 2] - d[1, 2] * d[2, 1]

@@ -10,11 +10,11 @@ The implicit method puts every collider into its contact barrier instead
 
 import numpy as np
 
-from clothtool.numba_setup import njit
+from clothtool.numba_setup import njit, njit_inner
 
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def _closest(x, spheres, planes):
     """(signed distance, unit normal, collider id) of the nearest collider surface to x."""
     best, best_n, best_id = np.inf, (0.0, 0.0, 1.0), -1

@@ -29,7 +29,7 @@ import numpy as np
 
 from clothtool.geometry import (dihedral_angle, dihedral_angle_gradient, dihedral_angle_hessian,
                                 hinge_normals)
-from clothtool.numba_setup import njit
+from clothtool.numba_setup import njit, njit_inner
 from clothtool.vec3 import cross, dot, load, scale, sub
 
 THIN = 1e-4  # a hinge triangle this much lower than the shared edge is a sliver: no bending
@@ -58,7 +58,7 @@ def dihedral_element(xi, xj, xk, xl, theta_rest, coef, project, grad, hess):
     return coef * delta * delta
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def _sliver(xi, xj, xk, xl):
     """A hinge with a triangle whose height is at most THIN times the shared edge."""
     e, nk, nl = hinge_normals(xi, xj, xk, xl)
@@ -66,7 +66,7 @@ def _sliver(xi, xj, xk, xl):
     return dot(nk, nk) <= limit or dot(nl, nl) <= limit
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def _hinge_gradient(x, hinge, h, theta_rest, g):
     """θ − θ̄ of hinge h, with ∇θ (12,) in g; NaN for a degenerate or sliver hinge."""
     xi, xj = load(x, hinge[h, 0]), load(x, hinge[h, 1])

@@ -39,7 +39,7 @@ the same pass as the membrane's W (:func:`strain_assemble`): both read the same 
 import numpy as np
 
 from clothtool.geometry import dihedral_angles
-from clothtool.numba_setup import njit
+from clothtool.numba_setup import njit, njit_inner
 from clothtool.sim.energies.bending import dihedral_assemble, dihedral_total_energy
 from clothtool.sim.energies.membrane import (add_triangle, deformation, deformation_gradient,
                                              membrane_density, membrane_total_energy,
@@ -67,7 +67,7 @@ def strain_measures(x, faces, dr_inv, out):
     return out
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def dissipation_density(f0, f1, coef, base, exact, g0, g1, h_f):
     """φ = ½ Σ_c coef_c (m_c − base_c)² per unit rest area, m = (‖f0‖, ‖f1‖, f0·f1), at
     F = (f0, f1); returns (φ, g0 + ∂φ/∂f0, g1 + ∂φ/∂f1) and adds ∂²φ/∂vec F² to h_f (6, 6):

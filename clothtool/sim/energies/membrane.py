@@ -31,13 +31,13 @@ The projected element Hessian is Bᵀ H_F⁺ B with B = ∂vec F/∂x, PSD becau
 
 import numpy as np
 
-from clothtool.numba_setup import njit
+from clothtool.numba_setup import njit, njit_inner
 from clothtool.vec3 import add, dot, load, scale, sub
 
 EPS = 1e-12
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def deformation(x0, x1, x2, dr_inv):
     """F's columns f0, f1 and the shape-function weights α, β: f0 = Σ α_v x_v, f1 = Σ β_v x_v."""
     a, b, c, d = dr_inv[0, 0], dr_inv[0, 1], dr_inv[1, 0], dr_inv[1, 1]
@@ -48,14 +48,14 @@ def deformation(x0, x1, x2, dr_inv):
     return f0, f1, (-a - c, a, c), (-b - d, b, d)
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def deformation_gradient(x0, x1, x2, dr_inv):
     """F's columns (f0, f1) = D_d D_r⁻¹."""
     f0, f1, _, _ = deformation(x0, x1, x2, dr_inv)
     return f0, f1
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def _density(f0, f1, stretch, k_shear):
     n0 = np.sqrt(dot(f0, f0))
     n1 = np.sqrt(dot(f1, f1))
@@ -64,7 +64,7 @@ def _density(f0, f1, stretch, k_shear):
             + 0.5 * k_shear * s * s)
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def _stress(f0, f1, stretch, k_shear):
     """∂Ψ/∂f0 = k_u(‖f0‖ − b_u) f0/‖f0‖ + k_h s f1 and ∂Ψ/∂f1 (s = f0·f1)."""
     n0 = max(np.sqrt(dot(f0, f0)), EPS)
@@ -82,7 +82,7 @@ def membrane_energy(x0, x1, x2, dr_inv, area, stretch, k_shear):
     return area * _density(f0, f1, stretch, k_shear)
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def _stretch_block(f, k, b, project, out, offset):
     """Add k[f̂f̂ᵀ + c(I − f̂f̂ᵀ)], c = 1 − b/‖f‖ (clamped at 0 when projecting), at (offset, offset)."""
     n2 = max(dot(f, f), EPS * EPS)
@@ -95,7 +95,7 @@ def _stretch_block(f, k, b, project, out, offset):
             out[offset + p, offset + q] += k * ((1.0 - c) * ff + (c if p == q else 0.0))
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def _shear_eigen(f0, f1):
     """The projected shear Hessian's pieces (module docstring): s = f0·f1, ŝ's and d̂'s
     halves us = u/√(2U), ws = w/√(2W) (zero when undefined), and the non-negative
@@ -146,7 +146,7 @@ def shear_outer(f0, f1, k, cross, exact, out):
             out[3 + p, p] += cross
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def _shear_hessian(f0, f1, k, project, out):
     """Add the 6×6 shear Hessian k[ggᵀ + s H₆] (or its PSD projection) to out."""
     if not project:
@@ -188,7 +188,7 @@ def membrane_element(x0, x1, x2, dr_inv, area, stretch, k_shear, project, grad, 
     return area * energy
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def membrane_density(f0, f1, stretch, k_shear, project, h_f):
     """(Ψ, ∂Ψ/∂f0, ∂Ψ/∂f1) at F = (f0, f1); writes ∂²Ψ/∂vec F² (PSD-projected with
     ``project``) into h_f (6, 6)."""
@@ -203,7 +203,7 @@ def membrane_density(f0, f1, stretch, k_shear, project, h_f):
     return _density(f0, f1, stretch, k_shear), g0, g1
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def to_vertices(alpha, beta, area, g0, g1, h_f, grad, hess):
     """The chain rule through f0 = Σ α_v x_v, f1 = Σ β_v x_v: grad (9,) = A (α_v g0 + β_v g1)
     and hess (9, 9) = A Bᵀ h_f B (vertex-major) from a density's vec-F gradient (g0, g1)
@@ -263,7 +263,7 @@ def membrane_vertex(x0, x1, x2, dr_inv, area, stretch, k_shear, a, grad, hess):
         hess[p, p] += 0.5 * c
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def _stretch_vertex(f, k, b, weight, hess):
     """Add weight · k[f̂f̂ᵀ + c(I − f̂f̂ᵀ)], c = max(1 − b/‖f‖, 0) (the projected stretch block)."""
     n2 = max(dot(f, f), EPS * EPS)
@@ -276,7 +276,7 @@ def _stretch_vertex(f, k, b, weight, hess):
         hess[p, p] += across
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def add_triangle(face, slot, g, hess, grad, values):
     """Adds a triangle's gradient g (9,) to grad (N, 3) and its Hessian hess (9, 9) to the
     matrix blocks values[slot[3a + b]] of its corners a, b."""

@@ -48,7 +48,7 @@ every cell's C_e and its stresses (:func:`edge_stresses`), then visits the trian
 
 import numpy as np
 
-from clothtool.numba_setup import njit
+from clothtool.numba_setup import njit, njit_inner
 from clothtool.sim.energies.membrane import add_triangle, deformation, to_vertices
 from clothtool.sim.energies.membrane_nodal import clamped_stress
 from clothtool.vec3 import dot, load
@@ -125,7 +125,7 @@ def edge_parts(area, stretch, shear, cells, frames=None):
     return np.ascontiguousarray(turn), weight, cell_area, mat_stretch, mat_shear
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def _turned(f0, f1, r):
     """The columns of F R."""
     return ((f0[0] * r[0, 0] + f1[0] * r[1, 0], f0[1] * r[0, 0] + f1[1] * r[1, 0],
@@ -174,7 +174,7 @@ def edge_stresses(x, faces, dr_inv, cells, turn, weight, cell_area, stretch, she
     return total
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def edge_density(f0, f1, t, cells, turn, weight, stress, g0, g1, h_f):
     """Triangle t's share of its edges' cells per unit of its area, at its F = (f0, f1):
     returns (g0, g1) + ∂W/∂F_t / A_t and adds to h_f (6, 6) the Hessian of the module

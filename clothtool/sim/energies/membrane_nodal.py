@@ -39,7 +39,7 @@ a vertex with its two-ring.
 
 import numpy as np
 
-from clothtool.numba_setup import njit
+from clothtool.numba_setup import njit, njit_inner
 from clothtool.sim.energies.membrane import deformation
 from clothtool.vec3 import dot, load
 
@@ -100,7 +100,7 @@ def nodal_pairs(ptr, index):
     return np.stack([index[ptr[stencil] + row], index[ptr[stencil] + col]], axis=1).astype(np.int64)
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def _metric(x, faces, dr_inv, tri_ptr, tri, weight, v):
     """C_v = Σ_t w_vt F_tᵀF_t as (C₀₀, C₁₁, C₀₁)."""
     c00 = c11 = c01 = 0.0
@@ -115,7 +115,7 @@ def _metric(x, faces, dr_inv, tri_ptr, tri, weight, v):
     return c00, c11, c01
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def _density(c00, c11, c01, st, kh):
     n0 = np.sqrt(max(c00, 0.0))
     n1 = np.sqrt(max(c11, 0.0))
@@ -237,7 +237,7 @@ def nodal_assemble(x, faces, dr_inv, ptr, index, tri_ptr, tri, weight, local, ce
 
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def clamped_stress(m00, m11, m01):
     """The symmetric 2 × 2 [[m00, m01], [m01, m11]] with its negative eigenvalue set to 0."""
     half = 0.5 * (m00 - m11)

@@ -65,7 +65,7 @@ time steppers' Newton steps with it; static equilibrium adds C to its direct sol
 
 import numpy as np
 
-from clothtool.numba_setup import njit
+from clothtool.numba_setup import njit, njit_inner
 
 SEEN = 0.25  # a singular value of B_v/A_v below this: a component vertex v hands over
 PRUNE = 1e-10  # |Q_ij| ≤ PRUNE·√(Q_ii Q_jj) is rounding of a cancelled entry: dropped
@@ -369,7 +369,7 @@ def mixed_voronoi_areas(uv, faces):
 # ---------------------------------------------------------------------------- kernels
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def quadratic_form(d, ptr, col, val, grad):
     """½ Σ_c d_cᵀ Q d_c with Q (CSR ptr, col, val) and d (N, 3); adds its gradient Q d to grad
     (N, 3) unless grad is empty."""

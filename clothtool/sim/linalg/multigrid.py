@@ -22,7 +22,7 @@ smooth error that Jacobi cannot reach:
 
 import numpy as np
 
-from clothtool.numba_setup import njit
+from clothtool.numba_setup import njit, njit_inner
 from clothtool.sim.linalg.filter import FREE, PINNED
 from clothtool.sim.linalg.aggregation import coarsen
 from clothtool.sim.linalg.blocks import BlockPattern
@@ -87,7 +87,7 @@ class Hierarchy:
                        self.z, self.t)
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def _filtered_block(b, i, j, kind, out):
     """out = S_i B S_j (+ (I − S_i) on the diagonal, so pinned vertices stay non-singular)."""
     copy_into(b, out)
@@ -160,7 +160,7 @@ def setup_levels(fine, kind, constrained, floor, mg):
     cholesky(coarsest)
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def _coarse_multiply(lev, mg, x, y):
     """y = A_lev x for a coarse level (lev ≥ 1)."""
     node_off, block_off, row_ptr, row_off, col, _, _, values = mg[:8]
@@ -180,7 +180,7 @@ def _coarse_multiply(lev, mg, x, y):
         y[n0 + i, 2] = y2
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def _jacobi_sweep(lo, hi, diag_inv, res, z):
     """z += ω D⁻¹ res on nodes lo..hi."""
     for i in range(lo, hi):
@@ -189,7 +189,7 @@ def _jacobi_sweep(lo, hi, diag_inv, res, z):
             z[i, p] += OMEGA * (b[p, 0] * res[i, 0] + b[p, 1] * res[i, 1] + b[p, 2] * res[i, 2])
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def _restrict(lo, hi, c0, agg, src, dst):
     """dst[c0 + agg[i]] += src[i] (Pᵀ)."""
     for i in range(lo, hi):

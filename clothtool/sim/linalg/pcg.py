@@ -18,7 +18,7 @@ numba kernels underneath take the plain arrays these unpack to. A pair operator
 
 import numpy as np
 
-from clothtool.numba_setup import njit
+from clothtool.numba_setup import njit, njit_inner
 from clothtool.sim.linalg.filter import apply_filter
 from clothtool.sim.linalg.blocks import block_multiply, residual
 from clothtool.sim.linalg.multigrid import COARSEST, Hierarchy, vcycle
@@ -94,7 +94,7 @@ def make_preconditioner(name, pattern, faces):
     return BlockJacobi(pattern.n)
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def _dot(a, b):
     """Σ a·b over (N, 3) arrays."""
     total = 0.0
@@ -103,7 +103,7 @@ def _dot(a, b):
     return total
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def _apply_inverse(inv, r, z):
     for i in range(r.shape[0]):
         b = inv[i]
@@ -112,7 +112,7 @@ def _apply_inverse(inv, r, z):
         z[i, 2] = b[2, 0] * r[i, 0] + b[2, 1] * r[i, 1] + b[2, 2] * r[i, 2]
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def _axpy(alpha, x, y):
     """y += alpha x."""
     for i in range(x.shape[0]):
@@ -121,7 +121,7 @@ def _axpy(alpha, x, y):
         y[i, 2] += alpha * x[i, 2]
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def _xpby(x, beta, y):
     """y = x + beta y."""
     for i in range(x.shape[0]):
@@ -130,7 +130,7 @@ def _xpby(x, beta, y):
         y[i, 2] = x[i, 2] + beta * y[i, 2]
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def _precondition(inv, r, kind, constrained, z, mg, row_ptr, col, values, modes):
     """z = S P⁻¹ r: the mode multigrid's cycle when ``modes`` holds one, the multigrid V-cycle
     when ``mg`` does, block Jacobi when ``inv`` does. The two absent are ``None``: numba prunes
@@ -177,7 +177,7 @@ def _arrays(preconditioner):
     return preconditioner.inverse, None, None
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def _residual_with(row_ptr, col, values, extra, b, x, r):
     """r = b − (A + H_extra) x."""
     residual(row_ptr, col, values, b, x, r)

@@ -14,7 +14,7 @@ their unknowns: with a filtered right-hand side those stay zero, as the filter w
 
 import numpy as np
 
-from clothtool.numba_setup import njit
+from clothtool.numba_setup import njit, njit_inner
 from clothtool.sim.linalg.filter import PINNED
 from clothtool.sim.linalg.modes import M
 from clothtool.vec3 import spd_inverse3
@@ -49,7 +49,7 @@ def _solve_node(d, t, x, i):
         x[i, p] = v
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def residual(row_ptr, col, values, r, x, out):
     """out = r − A x (a coarse level)."""
     for i in range(x.shape[0]):
@@ -146,7 +146,7 @@ def _substitute(lower, y, n):
         y[i] = s / lower[i, i]
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def cholesky_solve(lower, r, z):
     """z = A⁻¹ r with A = L Lᵀ (L from :func:`cholesky`), for (n, b) arrays flattened
     row-major."""

@@ -46,7 +46,7 @@ contact forces in the sweeps, no friction).
 import numpy as np
 
 from clothtool.geometry import dihedral_angle_gradient
-from clothtool.numba_setup import njit
+from clothtool.numba_setup import njit, njit_inner
 from clothtool.sim.energies.bending import quadratic_element
 from clothtool.sim.energies.energy import FemElastic
 from clothtool.sim.solve.integrator import Integrator, StepReport
@@ -143,7 +143,7 @@ def damping_data(x, faces, dr_inv, area, stretch, k_shear, bend, hinge, tri_hf, 
                                     load(x, hinge[h, 2]), load(x, hinge[h, 3]), hinge_out[h])
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def membrane_damping(x0, x1, x2, dr_inv, area, a, h_f, f_n, damp, g, hmat):
     """Adds corner a's rows of (β/h) K(x_n)(x − x_n) and its (a, a) block to g and hmat, for one
     triangle: with K = A Bᵀ H_F B, K(x − x_n) = A Bᵀ H_F δF, δF = F(x) − F(x_n) (F is
@@ -241,7 +241,7 @@ def vertex_system(i, x, x_n, y, mass, inv_h2, faces, dr_inv, area, stretch, k_sh
                         g[p] += damp * c2 * w[a] * w[b] * (x[vb, p] - x_n[vb, p])
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def _solve3(hm, g, out):
     """out = −H⁻¹ g for a symmetric 3×3 H (adjugate); False when H is singular."""
     c00 = hm[1, 1] * hm[2, 2] - hm[1, 2] * hm[2, 1]
