@@ -91,8 +91,10 @@ def spd_inverse3(a, floor, out):
     m[0, 1] = m[1, 0] = a01
     m[0, 2] = m[2, 0] = a02
     m[1, 2] = m[2, 1] = a12
-    v = np.zeros((3, 3))  # the identity, without compiling np.eye
-    v[0, 0] = v[1, 1] = v[2, 2] = 1.0
+    v = np.empty((3, 3))  # the identity in loops (np.eye, np.zeros: overloads compiled apart)
+    for p in range(3):
+        for q in range(3):
+            v[p, q] = 1.0 if p == q else 0.0
     scale = abs(a00) + abs(a11) + abs(a22) + abs(a01) + abs(a02) + abs(a12)
     for _ in range(JACOBI_SWEEPS):
         off = abs(m[0, 1]) + abs(m[0, 2]) + abs(m[1, 2])
@@ -119,7 +121,7 @@ def spd_inverse3(a, floor, out):
                     vkp, vkq = v[k, p], v[k, q]
                     v[k, p] = c * vkp - s * vkq
                     v[k, q] = s * vkp + c * vkq
-    largest = max(m[0, 0], m[1, 1], m[2, 2])
+    largest = max(max(m[0, 0], m[1, 1]), m[2, 2])  # max of three compiles an overload of its own
     noise = ROUNDING * largest  # eigenvalues below this are rounding, not stiffness
     if not (floor > 0.0 or noise > 0.0):  # a zero block with no known floor: nothing to invert
         out[:, :] = 0.0

@@ -52,7 +52,7 @@ EPS = 1e-12
 ZERO = (0.0, 0.0, 0.0)
 NO_GRADIENT = np.zeros((0, 3))  # the energy-only call of the plate's kernel
 NO_BLOCKS = np.zeros((0, 3, 3))
-NO_EDGES = (np.zeros((0, 3), np.int64), np.zeros((0, 3, 2, 2)), np.zeros((0, 3)), np.zeros((0, 9)))
+NO_EDGES = (None, None, None, None)  # strain_assemble without the edge membrane: numba prunes it
 
 
 @njit(cache=True)
@@ -119,15 +119,16 @@ def strain_assemble(x, faces, dr_inv, area, stretch, k_shear, cells, turn, weigh
     """(W, Φ) of the triangles; adds both gradients and projected Hessian blocks to grad
     (N, 3) and values in one pass: W the membrane's (``stretch`` (M, 4), ``k_shear`` (M,),
     :mod:`clothtool.sim.energies.membrane`), none when ``stretch`` has no rows. With
-    ``cells`` of rows, each triangle's share of the edge membrane's gradient and Hessian too
+    ``cells`` (not None), each triangle's share of the edge membrane's gradient and Hessian too
     (:func:`~clothtool.sim.energies.membrane_edge.edge_density`, its cells' ``stress`` from
     :func:`~clothtool.sim.energies.membrane_edge.edge_stresses` at x; its W is not summed
-    here)."""
+    here). Without the edge membrane ``cells``, ``turn``, ``weight`` and ``stress`` are None
+    (``NO_EDGES``): numba then prunes the test of ``cells`` and does not compile
+    ``edge_density``."""
     g = np.empty(9)
     hess = np.empty((9, 9))
     h_f = np.empty((6, 6))
     fused = stretch.shape[0] > 0
-    edged = cells.shape[0] > 0
     membrane, total = 0.0, 0.0
     for t in range(faces.shape[0]):
         f0, f1, alpha, beta = deformation(load(x, faces[t, 0]), load(x, faces[t, 1]),
@@ -138,7 +139,7 @@ def strain_assemble(x, faces, dr_inv, area, stretch, k_shear, cells, turn, weigh
             membrane += area[t] * w
         else:
             h_f[:, :] = 0.0
-        if edged:
+        if cells is not None:
             g0, g1 = edge_density(f0, f1, t, cells, turn, weight, stress, g0, g1, h_f)
         phi, g0, g1 = dissipation_density(f0, f1, coef[t], base[t], False, g0, g1, h_f)
         total += area[t] * phi

@@ -21,7 +21,9 @@ from clothtool.numba_setup import njit
 def aggregate(row_ptr, col):
     """Greedy aggregation of a graph; returns (aggregate of each node, number of aggregates)."""
     n = row_ptr.shape[0] - 1
-    agg = np.full(n, -1, dtype=np.int64)
+    agg = np.empty(n, np.int64)  # all -1, in a loop: np.full compiles an overload of its own
+    for i in range(n):
+        agg[i] = -1
     count = 0
     # phase 1: a node whose neighbours are all free starts an aggregate with them
     for i in range(n):

@@ -113,7 +113,9 @@ def setup_levels(fine, kind, constrained, floor, mg):
     levels = node_off.shape[0] - 1
     base = block_off[1]
     values[:, :, :] = 0.0
-    bound = np.zeros(node_off[-1])
+    bound = np.empty(node_off[-1])  # zeros, in a loop: np.zeros compiles overloads of its own
+    for i in range(node_off[-1]):
+        bound[i] = 0.0
     block = np.empty((3, 3))
     # level 0: filtered fine blocks → diagonal inverses and the level-1 sums
     for i in range(node_off[1]):
