@@ -65,7 +65,7 @@ class KernelOnly(CPUDispatcher):
 def njit_inner(**options):
     """:func:`njit` for a kernel that only other kernels call: also without numba's CPython
     wrapper (``no_cpython_wrapper``), which serves only calls from Python and costs each
-    compiled function about 30 ms of a first run's compilation (37 such kernels on the hanging
+    compiled function about 30 ms of a first run's compilation (28 such kernels on the hanging
     sheet's default path). Its dispatcher is a :class:`KernelOnly`: a call from Python raises
     ``TypeError``. tests/test_numba_setup.py checks that no Python code refers to one."""
 
