@@ -172,7 +172,8 @@ class NewtonIntegrator(Integrator):
         self._stiffest = max(float(model.tri_stretch[:, :2].max()), float(model.tri_shear.max()))
         self._mean_free_mass = self._free_mass / max(int(np.count_nonzero(model.free)), 1)
         self.preconditioner = make_preconditioner(
-            solver.preconditioner if self.multigrid else "jacobi", pattern, model.faces)
+            solver.preconditioner if self.multigrid else "jacobi", pattern, model.faces,
+            self._stiffest * h * h / self._mean_free_mass)
         self.terms = self._terms(model, solver, h, pattern)
 
     def _terms(self, model, solver, h, pattern):
