@@ -202,3 +202,25 @@ def test_a_pinned_sheet_hangs_to_rest(tmp_path):
         assert np.array_equal(state.x[model.pinned], model.mesh.positions[model.pinned])
         assert integrator.max_stretch(state) < 1.05
         assert np.isfinite(state.x).all() and state.x[:, 2].min() < -0.05
+
+
+@random_sheets(4)
+def test_with_its_exact_remainder_the_hessian_is_the_finite_differences(seed, kind):
+    """The assembled unprojected Hessian plus :meth:`EdgeMembrane.exact_remainder` (the flap
+    pairs' Gauss–Newton coupling less the majorant) is the central differences of ∇W; the
+    remainder is negative semidefinite (Jensen, cell by cell)."""
+    uv, faces, dr_inv, area, stretch, shear = sheet(kind, stretch=(5000.0, 3000.0, 0.9, 1.0))
+    system = edge_system(uv, faces, dr_inv, area, stretch, shear)
+    rng = np.random.default_rng(seed)
+    x = flat(uv) + 0.002 * rng.standard_normal((len(uv), 3))
+    k = system.dense(system.assemble(x, False)[2])
+    remainder = system.term.exact_remainder(x).toarray()
+    exact = np.zeros_like(k)
+    for i in range(x.size):
+        d = np.zeros(x.size)
+        d[i] = 1e-7
+        exact[:, i] = (system.assemble(x + d.reshape(x.shape), False)[1]
+                       - system.assemble(x - d.reshape(x.shape), False)[1]).ravel() / 2e-7
+    assert np.abs(k + remainder - exact).max() <= 1e-6 * np.abs(exact).max()
+    assert np.linalg.eigvalsh(remainder).max() <= 1e-9 * np.abs(remainder).max()
+    assert np.abs(remainder).max() > 1e-3 * np.abs(exact).max()

@@ -547,17 +547,21 @@ def test_an_orthotropic_cantilever_droops_by_its_own_rigidity(tmp_path, kind, di
     assert drop == pytest.approx(elastica_tip_drop(length, bend, density), rel=0.03)
 
 
-def test_the_exact_hessian_finds_the_rest_of_a_folded_disc(tmp_path):
+@pytest.mark.parametrize("membrane", ["triangle", "edge"])
+def test_the_exact_hessian_finds_the_rest_of_a_folded_disc(tmp_path, membrane):
     """A 30 cm disc clamped at 9 cm (20 mm mesh) rests with folds that compress its triangles.
     Moved 0.3 mm off that rest, static equilibrium with the membrane's exact Hessian takes its
     steps and comes back to it (to 1e-6 of the largest weight) as Newton does near a minimum:
-    in a few steps (the projected Hessian takes 57)."""
+    in a few steps (the projected Hessian takes 57). The edge membrane's takes 20, quadratic
+    from 1e-3 of the weight on (1e-3, 4e-5, 1e-10); without its flap pairs' exact remainder
+    (the assembled majorant alone) 61, linear (1e-3, 9e-5, 9e-6, 1e-6)."""
     radius, pedestal, spacing = 0.15, 0.09, 0.02
     uv, faces = disc(radius, spacing, "grid", seed=1, clamp=pedestal)
     r, phi = np.hypot(uv[:, 0], uv[:, 1]), np.arctan2(uv[:, 1], uv[:, 0])
     outside = np.clip(r - pedestal - spacing / 2, 0.0, None) / (radius - pedestal)
     model = specimen_model(uv, faces, np.flatnonzero(outside <= 1e-9), {
-        "density": 0.2, "stretch": 5000.0, "shear": 50.0, "bending_length": 0.025}, tmp_path)
+        "density": 0.2, "stretch": 5000.0, "shear": 50.0, "bending_length": 0.025,
+        "membrane_model": membrane}, tmp_path)
     start = model.mesh.positions.copy()
     start[:, 2] = -outside * (0.02 + 0.01 * np.cos(6 * phi))
     rest = static_equilibrium(model, start, load_steps=1, max_iterations=300)
@@ -567,8 +571,11 @@ def test_the_exact_hessian_finds_the_rest_of_a_folded_disc(tmp_path):
     counts = {}
     back = static_equilibrium(model, off, load_steps=1, max_iterations=300, exact_hessian=True,
                               counts=counts)
-    assert counts["exact"] == counts["newton"] <= 10 and counts["residual"] <= 1e-6
-    assert np.abs(back - rest).max() < 1e-6
+    if membrane == "triangle":
+        assert counts["exact"] == counts["newton"] <= 10
+    else:
+        assert counts["exact"] >= counts["newton"] - 1 and counts["newton"] <= 25
+    assert counts["residual"] <= 1e-6 and np.abs(back - rest).max() < 1e-6
 
 
 def test_the_hinges_take_the_rigidity_across_their_edge(tmp_path):

@@ -235,3 +235,43 @@ def edge_assemble(x, faces, dr_inv, area, cells, turn, weight, stress, slots, gr
         g0, g1 = edge_density(f0, f1, t, cells, turn, weight, stress, ZERO, ZERO, h_f)
         to_vertices(alpha, beta, area[t], g0, g1, h_f, g, hess)
         add_triangle(faces[t], slots[t], g, hess, grad, values)
+
+
+def edge_exact_remainder(x, faces, dr_inv, cells, turn, weight, cell_area, stress):
+    """The exact Hessian minus the assembled one (:func:`edge_assemble` with the stress part
+    unprojected), a sparse (3N, 3N) matrix: Σ_e A_e [J_eᵀ Ψ''_e J_e − Σ_t w_et J_tᵀ Ψ''_e J_t]
+    (module docstring; each cell's term ≤ 0 by Jensen), with J_t = ∂C'_t/∂x on triangle t's
+    vertices and J_e = Σ_t w_et J_t on the cell's four; the cells' ``stress`` from
+    :func:`edge_stresses` at x. With a triangle's u = Σ_i a_i x_i and v = Σ_i b_i x_i (the
+    columns of F_t R), ∂(u·u)/∂x_i = 2a_i u, ∂(v·v)/∂x_i = 2b_i v, ∂(u·v)/∂x_i = a_i v + b_i u.
+    For the static finish only (statics' ``exact_hessian``): the flap pairs it couples are
+    outside the triangles' pattern."""
+    import scipy.sparse as sps
+
+    m, n = len(faces), len(x)
+    a, b = dr_inv[:, 0, 0], dr_inv[:, 0, 1]
+    c, d = dr_inv[:, 1, 0], dr_inv[:, 1, 1]
+    alpha = np.stack([-a - c, a, c], axis=1)  # (M, 3): f0 = Σ α_i x_i
+    beta = np.stack([-b - d, b, d], axis=1)
+    xs = x[faces]  # (M, 3 vertices, 3)
+    r = turn  # (M, 3 edges, 2, 2)
+    ai = r[:, :, None, 0, 0] * alpha[:, None, :] + r[:, :, None, 1, 0] * beta[:, None, :]
+    bi = r[:, :, None, 0, 1] * alpha[:, None, :] + r[:, :, None, 1, 1] * beta[:, None, :]
+    u = np.einsum("mki,mip->mkp", ai, xs)  # (M, 3, 3)
+    v = np.einsum("mki,mip->mkp", bi, xs)
+    g = np.empty((m, 3, 3, 3, 3))  # (triangle, edge, component, vertex, coordinate)
+    g[:, :, 0] = 2.0 * ai[..., None] * u[:, :, None, :]
+    g[:, :, 1] = 2.0 * bi[..., None] * v[:, :, None, :]
+    g[:, :, 2] = ai[..., None] * v[:, :, None, :] + bi[..., None] * u[:, :, None, :]
+    col = np.broadcast_to((3 * faces[:, None, None, :, None] + np.arange(3)), g.shape).ravel()
+    own = np.broadcast_to(np.arange(3 * m * 3).reshape(m, 3, 3, 1, 1), g.shape).ravel()
+    cell_row = np.broadcast_to(3 * cells[:, :, None, None, None]
+                               + np.arange(3)[:, None, None], g.shape).ravel()
+    n_cells = len(cell_area)
+    j_t = sps.csr_matrix((g.ravel(), (own, col)), shape=(9 * m, 3 * n))
+    j_e = sps.csr_matrix(((weight[:, :, None, None, None] * g).ravel(), (cell_row, col)),
+                         shape=(3 * n_cells, 3 * n))
+    curvature = cell_area[:, None] * stress[:, 6:9]  # A_e Ψ''_e (E, 3)
+    d_e = sps.diags(curvature.ravel())
+    d_t = sps.diags((weight[:, :, None] * curvature[cells]).ravel())
+    return (j_e.T @ d_e @ j_e - j_t.T @ d_t @ j_t).tocsr()

@@ -29,7 +29,8 @@ from clothtool.sim.energies.bending import (dihedral_assemble, dihedral_total_en
                                    quadratic_gradient)
 from clothtool.sim.linalg.blocks import scatter_blocks
 from clothtool.sim.energies.membrane import membrane_assemble, membrane_total_energy
-from clothtool.sim.energies.membrane_edge import edge_assemble, edge_parts, edge_stresses
+from clothtool.sim.energies.membrane_edge import (edge_assemble, edge_exact_remainder, edge_parts,
+                                                  edge_stresses)
 from clothtool.sim.energies.membrane_nodal import nodal_assemble, nodal_energy, nodal_operator, nodal_pairs
 from clothtool.sim.energies.plate import hessian_gradient
 
@@ -134,6 +135,14 @@ class EdgeMembrane(Term):
         edge_assemble(x, self.faces, self.dr_inv, self.area, self.cells, self.turn, self.weight,
                       self.stress, self.slots, grad, values)
         return total
+
+    def exact_remainder(self, x):
+        """The exact Hessian at x minus :meth:`assemble`'s unprojected one (sparse (3N, 3N),
+        :func:`~clothtool.sim.energies.membrane_edge.edge_exact_remainder`): statics adds it
+        for its exact Newton steps."""
+        self.stresses(x, False)
+        return edge_exact_remainder(x, self.faces, self.dr_inv, self.cells, self.turn,
+                                    self.weight, self.cell_area, self.stress)
 
 
 class PlateBending(Term):

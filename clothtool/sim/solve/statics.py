@@ -11,7 +11,8 @@ The textile tests (cantilever, hanging strip, drape) use it in place of a long d
 Where the rest has compressed triangles (a draped disc's folds on a coarse mesh) the projected
 Hessian is stiffer than the true one across them and Newton converges only linearly; with
 ``exact_hessian`` each Newton step first solves with the membrane's exact Hessian (whose
-negative curvatures the rest of the sheet outweighs near a minimum), kept when it descends
+negative curvatures the rest of the sheet outweighs near a minimum; the edge membrane's
+with its flap pairs, which the assembled matrix majorises), kept when it descends
 and its line search keeps at least ``EXACT_FLOOR`` of it, else the projected step is taken
 (a modified Newton method, Nocedal & Wright 2006, §3.4).
 """
@@ -49,6 +50,7 @@ def static_equilibrium(model, x=None, *, tolerance=1e-6, max_iterations=100, loa
     extent = float(np.ptp(model.mesh.rest3d, axis=0).max())
     extra = [t.unassembled() for t in energy.terms if hasattr(t, "unassembled")]
     extra = sum(e for e in extra if e is not None)  # the corrected plate's C (terms.PlateBending)
+    exact_parts = [t for t in energy.terms if hasattr(t, "exact_remainder")]  # terms.EdgeMembrane
     tally = {"newton": 0, "exact": 0, "residual": 0.0}
     try:
         for step in range(1, load_steps + 1):
@@ -61,7 +63,10 @@ def static_equilibrium(model, x=None, *, tolerance=1e-6, max_iterations=100, loa
                 """The Newton step (N, 3) and the gradient on the free coordinates."""
                 energy.project(projected)
                 energy.assemble(x, grad, matrix.values)
-                k = (matrix.to_scipy() + extra)[free][:, free]
+                k = matrix.to_scipy() + extra
+                if exact_parts and not projected:
+                    k = k + sum(t.exact_remainder(x) for t in exact_parts)
+                k = k[free][:, free]
                 shift = RIDGE * float(np.abs(k.diagonal()).max() or 1.0)
                 g = (grad - load).ravel()[free]
                 dx = np.zeros(3 * n)
