@@ -92,7 +92,7 @@ solver:
   substeps: 1           # solver steps per frame
   tolerance: 1.0e-6     # relative residual of the linear solve (the first Newton step's; later ones ask less)
   max_iterations: 500   # conjugate-gradient iterations per solve, at most
-  preconditioner: multigrid  # multigrid (aggregation V-cycle), amg (rigid and shear modes) or jacobi
+  preconditioner: multigrid  # multigrid (aggregation V-cycle), amg (rigid and shear modes), hybrid, auto or jacobi
   newton_iterations: 20 # Newton steps per solver step, at most (1 = Baraff–Witkin's linearised step)
   newton_tolerance: 0.04  # m/s, Newton stops when the largest velocity correction max|Δx|/h is below
   friction_velocity: 1.0e-4  # m/s, contact friction holds below this sliding speed (IPC's ε_v)
@@ -100,6 +100,7 @@ solver:
   slow_slip_bound: 0.0  # m/s, contact friction: slips slower than this take the bound's curvature (0 = off)
   forcing_from_second: false  # contact: the linear solves' Eisenstat–Walker ratio starts at Newton's second iterate
   first_forcing: 0.0  # contact: Newton's first linear solve of a step asks for this relative residual (0 = solver.tolerance)
+  first_cut_iterations: 20  # contact: Newton's first linear solve of a step stops after this many iterations when CCD cuts its guess short (0 = off)
   line_search: true     # backtracking line search on the Newton steps
   stiffness_continuation: auto  # implicit: solve each step first with the membrane 10^n … 10× softer (stiff cloth at large steps); auto = n from k·ĥ²/m; 0 = off
   continuation_after: 20  # with stiffness_continuation: only solves Newton alone stalls on (unconverged after this many steps, half of them stiffness-bound); 0 = every solve

@@ -374,6 +374,42 @@ def test_first_forcing_is_the_first_pcg_tolerance_of_each_contact_step(tmp_path,
     assert all(1e-6 <= t <= 0.15 for tols in asked for t in tols[1:])
 
 
+@pytest.mark.parametrize("first", [0, 3])
+def test_first_cut_iterations_stops_the_first_pcg_whose_guess_ccd_cuts(tmp_path, monkeypatch,
+                                                                       first):
+    """``solver.first_cut_iterations`` k: Newton's first PCG of a contact step stops after k
+    iterations exactly when CCD over the step's candidates cuts its guess short (the sheet
+    falling onto a sphere: the steps at impact, not those of the fall before); every other
+    solve keeps ``solver.max_iterations``. The sheet stays intersection-free either way."""
+    import clothtool.sim.solve.newton as newton
+    from clothtool.sim.solve.potential import Contact
+
+    asked = []
+    pcg, minimise = newton.filtered_pcg, newton.NewtonIntegrator._newton
+
+    def spy(matrix, rhs, dx, constraints, tol, max_iter, *rest):
+        cut = asked[-1][1].cuts(dx) if not asked[-1][0] else None
+        its, res = pcg(matrix, rhs, dx, constraints, tol, max_iter, *rest)
+        asked[-1][0].append((max_iter, its, cut))
+        return its, res
+
+    def started(self, *args, **kw):
+        asked.append(([], next(t.contact for t in self.terms if isinstance(t, Contact))))
+        return minimise(self, *args, **kw)
+
+    monkeypatch.setattr(newton, "filtered_pcg", spy)
+    monkeypatch.setattr(newton.NewtonIntegrator, "_newton", started)
+    scene = {"colliders": [{"sphere": {"center": [0.0, -0.2, 0.0], "radius": 0.15}}],
+             "self_collision": {"thickness": 0.002}}
+    _, out = run(tmp_path, scene, frames=12, solver={"first_cut_iterations": first})
+    assert_intersection_free(out)
+    firsts = [solves[0] for solves, _ in asked]
+    assert sum(cut for _, _, cut in firsts) >= 2 and sum(not cut for _, _, cut in firsts) >= 2
+    for limit, its, cut in firsts:
+        assert limit == (first if cut and first else 500) and its <= limit
+    assert all(limit == 500 for solves, _ in asked for limit, _, _ in solves[1:])
+
+
 # ---------------------------------------------------------------- scenes
 
 

@@ -142,7 +142,8 @@ def test_strain_limiting_bounds_the_edges():
 
 
 METHODS = [("implicit", {}), ("implicit", {"preconditioner": "amg"}),
-           ("implicit", {"preconditioner": "hybrid"}), ("mass-spring", {}), ("pbd", {}),
+           ("implicit", {"preconditioner": "hybrid"}), ("implicit", {"preconditioner": "auto"}),
+           ("mass-spring", {}), ("pbd", {}),
            ("pbd", {"pbd_variant": "jacobi"}),
            ("pbd", {"strain_limit": 0.1}), ("xpbd", {}), ("projective", {}), ("explicit", {})]
 

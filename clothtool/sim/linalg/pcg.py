@@ -80,11 +80,24 @@ class Hybrid:
         return self.tight
 
 
-def make_preconditioner(name, pattern, faces):
+# ``auto``: a model whose stiffness ratio k h²/m (``stiffness``: its stiffest membrane over the
+# free vertices' mean mass, at the solver step h) is at least this takes ``amg`` for every solve,
+# a softer one ``hybrid``'s split. multigrid's PCG iterations grow with the ratio and amg's hardly
+# do, so amg's dearer cycle pays on the stiff sheets and not on the soft ones (per solve, on
+# systems captured from each run at its own tolerance: the 64² hanging sheet of ``benchmarks
+# linalg``, ratio 3.5e5 at 1e-6, 0.95× multigrid's time; the hanging sheet sample, 3.0e4 at 1e-2,
+# 1.38×; the drape and twist samples, 1.5e3 and 2.3e3 at 1e-2, 1.83× and 1.86×)
+AUTO_RATIO = 1e5
+
+
+def make_preconditioner(name, pattern, faces, stiffness=0.0):
     """``solver.preconditioner`` for a matrix pattern: a :class:`Hierarchy` for
     ``multigrid``, a :class:`~clothtool.sim.linalg.multilevel.ModeMultigrid` for ``amg`` (block
-    Jacobi on meshes too small to coarsen), a :class:`Hybrid` of the two for ``hybrid``, else
-    block Jacobi."""
+    Jacobi on meshes too small to coarsen), a :class:`Hybrid` of the two for ``hybrid``, for
+    ``auto`` ``amg`` when the model's ``stiffness`` ratio k h²/m is at least ``AUTO_RATIO`` and
+    ``hybrid`` below, else block Jacobi."""
+    if name == "auto":
+        name = "amg" if stiffness >= AUTO_RATIO else "hybrid"
     if name == "multigrid" and pattern.n > COARSEST:
         return Hierarchy.for_mesh(pattern, faces)
     if name == "amg" and pattern.n > MODES_COARSEST:

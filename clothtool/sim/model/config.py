@@ -39,7 +39,7 @@ BEND_MODELS = ("hessian", "dihedral", "quadratic")
 MEMBRANE_MODELS = ("triangle", "nodal", "edge")
 DAMPING_MODELS = ("strain", "frozen")  # the strains' change potential, or βK(x_n) frozen
 METHODS = tuple(methods.METHODS)
-PRECONDITIONERS = ("jacobi", "multigrid", "amg", "hybrid")
+PRECONDITIONERS = ("jacobi", "multigrid", "amg", "hybrid", "auto")
 PBD_VARIANTS = ("gauss-seidel", "jacobi", "hierarchical")
 INTEGRATORS = ("bdf2", "euler")
 OUTPUT_FORMATS = ("ply", "obj", "mdd", "usd")
@@ -682,7 +682,8 @@ class Solver(Section):
     for (later Newton steps ask for less: Eisenstat–Walker); ``preconditioner`` is
     block Jacobi or an aggregation multigrid V-cycle (``amg``: its coarse spaces carry
     cloth's near-null modes, rebuilt from the positions at every step; ``hybrid``: ``amg`` for
-    the tight solves, ``multigrid`` for the loose ones). ``newton_iterations: 1`` is
+    the tight solves, ``multigrid`` for the loose ones; ``auto``: ``amg`` on stiff models,
+    ``hybrid`` on soft ones). ``newton_iterations: 1`` is
     Baraff–Witkin's linearised step. A step whose speed exceeds ``max_speed`` (m/s)
     counts as a blow-up. ``friction_velocity`` ε_v (m/s) is the sliding speed below which
     contact friction holds (it creeps at most at ε_v where Coulomb's law sticks).
@@ -717,8 +718,10 @@ class Solver(Section):
                                   "`multigrid` (aggregation of translations), `amg` (aggregation "
                                   "of each aggregate's rigid motions and in-plane shears), "
                                   "`hybrid` (`amg` for the solves to a relative residual of 1e-4 "
-                                  "or finer, `multigrid` for the looser ones) or `jacobi` (block "
-                                  "Jacobi)")
+                                  "or finer, `multigrid` for the looser ones), `auto` (`amg` "
+                                  "when the stiffest membrane k over the free vertices' mean "
+                                  "mass m gives k h²/m ≥ 1e5 at the step h, `hybrid` below) or "
+                                  "`jacobi` (block Jacobi)")
     newton_iterations: int = setting(20, integer(minimum=1),
                                      "Newton steps per solver step, at most (1 = "
                                      "Baraff–Witkin's linearised step)")
@@ -750,6 +753,12 @@ class Solver(Section):
                                    "contact: Newton's first PCG of a step solves to this "
                                    "relative residual (the step from x_n that CCD cuts "
                                    "short at impact); 0 = solver.tolerance")
+    first_cut_iterations: int = setting(20, integer(minimum=0),
+                                        "contact: when CCD over the step's candidate pairs "
+                                        "cuts short the guess of Newton's first PCG of a step "
+                                        "(the motion x̃ − x_n runs into a surface), that PCG "
+                                        "stops after at most this many iterations (its "
+                                        "proposal is cut at the first contact anyway); 0 = off")
     line_search: bool = setting(True, flag,
                                 "halve a Newton step until the incremental potential does not "
                                 "increase")

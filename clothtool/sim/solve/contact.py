@@ -421,6 +421,17 @@ class BarrierContact:
                             bases, c, self.n_lag, n, self.overshot)
         return step
 
+    def cuts(self, dx):
+        """Does CCD over the current candidate pairs cut the motion short (the cloth by dx,
+        the colliders the rest of their way)? Nothing is updated: a hint for the solve, not
+        the guarantee (:meth:`max_step` is; pairs the candidates miss are not seen here)."""
+        n = self.scene.n_cloth
+        dy = np.empty_like(self.y)
+        dy[:n] = dx
+        dy[n:] = 0.0 if self.target is None else self.target - self.y[n:]
+        live = near_pairs(self.y, dy, self.stencils, self.geometry, self.reach)
+        return collision_free_step(self.y, dy, live, self.geometry, 1.0) < 1.0
+
     def add_collider_coupling(self, rhs):
         """rhs (N, 3) −= H_cX ΔX: the barrier's linearised response of the cloth to the rest of
         the colliders' motion ΔX in the step (of the last assembly's pairs)."""

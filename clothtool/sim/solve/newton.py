@@ -43,9 +43,11 @@ at 0.15 when Newton starts at x_n: that start is no iterate of the minimisation,
 friction BDF2's velocity there turns every slip; with ``solver.first_forcing`` η₀, the first
 at η₀ when Newton starts at x_n: at impact that step is long and CCD cuts it to a tenth or
 a quarter, and a PCG to 1e-6 over it ran to its cap of iterations for a direction the next
-steps replace), each warm-started from what the line search left of the previous step. A
-single Newton step (``newton_iterations: 1``) starts
-from x_n instead, with the PCG guess h v_n: that is exactly Baraff–Witkin's linearised step
+steps replace; with ``solver.first_cut_iterations`` k, that first PCG stops after k
+iterations when CCD over the step's candidates already cuts its guess short), each
+warm-started from what the line search left of the previous step. A single Newton step
+(``newton_iterations: 1``) starts from x_n instead, with the PCG guess h v_n: that is
+exactly Baraff–Witkin's linearised step
 (M − h ∂f/∂v − h² ∂f/∂x) Δv = h (f + h ∂f/∂x v_n) for backward Euler.
 
 With ``solver.stiffness_continuation`` n > 0 each minimisation is first solved with the
@@ -172,7 +174,8 @@ class NewtonIntegrator(Integrator):
         self._stiffest = max(float(model.tri_stretch[:, :2].max()), float(model.tri_shear.max()))
         self._mean_free_mass = self._free_mass / max(int(np.count_nonzero(model.free)), 1)
         self.preconditioner = make_preconditioner(
-            solver.preconditioner if self.multigrid else "jacobi", pattern, model.faces)
+            solver.preconditioner if self.multigrid else "jacobi", pattern, model.faces,
+            self._stiffest * h * h / self._mean_free_mass)
         self.terms = self._terms(model, solver, h, pattern)
 
     def _terms(self, model, solver, h, pattern):
@@ -412,6 +415,12 @@ class NewtonIntegrator(Integrator):
                 for term in terms:
                     term.prescribe(x, dx, rhs)
             operator = next((t.operator for t in terms if t.operator is not None), None)
+            # solver.first_cut_iterations: a first solve whose guess already runs into a
+            # surface proposes a motion that CCD cuts at the first contact; its PCG stops early
+            limit = solver.max_iterations
+            if (it == 0 and solver.first_cut_iterations and stage.from_state and not prescribed
+                    and solver.newton_iterations > 1 and any(t.cuts(x, dx) for t in terms)):
+                limit = min(limit, solver.first_cut_iterations)
             # prescribed motion still short of its goal puts the barrier's coupling −H_cX ΔX
             # (up to 1e22·m/ĥ² an entry) into the right-hand side, and one PCG iteration
             # that resolves that part alone meets a loose relative tolerance: the cloth
@@ -419,7 +428,7 @@ class NewtonIntegrator(Integrator):
             # through a hanging sheet, damping_model: strain); such steps solve to the floor
             cg_its, res = filtered_pcg(matrix, rhs, dx, constraints,
                                        solver.tolerance if prescribed else forcing,
-                                       solver.max_iterations, self.preconditioner, operator)
+                                       limit, self.preconditioner, operator)
             report.newton_iterations += 1
             report.cg_iterations += cg_its
             report.residual = max(report.residual, res)

@@ -11,6 +11,8 @@ kind a term is (Li et al. 2020, "Incremental Potential Contact", Algorithm 1). A
   (it overwrites them), and a term with a matrix-free part leaves it in ``operator``;
 - :meth:`~Term.along` gives s ↦ E_k(x + s dx) for the line search;
 - :meth:`~Term.max_step` is its largest safe fraction of a step (CCD; 1 without);
+- :meth:`~Term.cuts` says whether CCD over its current candidates would cut a motion short
+  (a hint for the solve; False without);
 - :meth:`~Term.prescribe` moves what the stage prescribes (moving pins, animated
   colliders) with the Newton step, :meth:`~Term.behind` says how far that still is;
 - :meth:`~Term.soften` scales its membrane stiffness for ``solver.stiffness_continuation``
@@ -69,6 +71,9 @@ class Term:
 
     def max_step(self, x, dx):
         return 1.0
+
+    def cuts(self, x, dx):
+        return False
 
     def prescribe(self, x, dx, rhs):
         pass
@@ -268,6 +273,9 @@ class Contact(Term):
 
     def max_step(self, x, dx):
         return self.contact.max_step(dx)
+
+    def cuts(self, x, dx):
+        return self.contact.cuts(dx)
 
     def prescribe(self, x, dx, rhs):
         self.contact.add_collider_coupling(rhs)
