@@ -330,12 +330,12 @@ def test_hybrid_solves_tight_with_amg_and_loose_with_multigrid():
 
 
 @pytest.mark.parametrize("stretch", [1.0e3, 5.0e4])
-def test_auto_is_amg_on_stiff_models_and_hybrid_on_soft_ones(stretch):
+def test_auto_is_amg_on_stiff_models_and_multigrid_on_soft_ones(stretch):
     """``auto``: ``amg`` for every solve when the stiffest membrane k over the free vertices'
-    mean mass m gives k h²/m ≥ ``AUTO_RATIO`` at the solver step h, ``hybrid`` below: a
+    mean mass m gives k h²/m ≥ ``AUTO_RATIO`` at the solver step h, ``multigrid`` below: a
     function of the model and the step, the same for every step of a run."""
     from clothtool.sim.linalg.multilevel import ModeMultigrid
-    from clothtool.sim.linalg.pcg import AUTO_RATIO, Hybrid
+    from clothtool.sim.linalg.pcg import AUTO_RATIO, Hierarchy
 
     cfg = load_config(config(mesh={"grid": {"nx": 24, "ny": 24}},
                              material={"stretch": stretch, "shear": 100.0},
@@ -345,9 +345,9 @@ def test_auto_is_amg_on_stiff_models_and_hybrid_on_soft_ones(stretch):
     mass = float(np.mean(model.mass[model.free]))
     ratio = stretch * integ.h ** 2 / mass
     assert (ratio >= AUTO_RATIO) == (stretch > 1.0e4)  # the two sides of the threshold
-    expected = ModeMultigrid if ratio >= AUTO_RATIO else Hybrid
+    expected = ModeMultigrid if ratio >= AUTO_RATIO else Hierarchy
     assert type(integ.preconditioner) is expected
-    for stiffness, kind in [(AUTO_RATIO, ModeMultigrid), (np.nextafter(AUTO_RATIO, 0), Hybrid)]:
+    for stiffness, kind in [(AUTO_RATIO, ModeMultigrid), (np.nextafter(AUTO_RATIO, 0), Hierarchy)]:
         pre = make_preconditioner("auto", model.pattern, model.faces, stiffness)
         assert type(pre) is kind
 

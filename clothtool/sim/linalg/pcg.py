@@ -18,7 +18,7 @@ numba kernels underneath take the plain arrays these unpack to. A pair operator
 
 import numpy as np
 
-from clothtool.numba_setup import njit, njit_inner
+from clothtool.numba_setup import njit
 from clothtool.sim.linalg.filter import apply_filter
 from clothtool.sim.linalg.blocks import block_multiply, residual
 from clothtool.sim.linalg.multigrid import COARSEST, Hierarchy, vcycle
@@ -82,7 +82,7 @@ class Hybrid:
 
 # ``auto``: a model whose stiffness ratio k h²/m (``stiffness``: its stiffest membrane over the
 # free vertices' mean mass, at the solver step h) is at least this takes ``amg`` for every solve,
-# a softer one ``hybrid``'s split. multigrid's PCG iterations grow with the ratio and amg's hardly
+# a softer one ``multigrid``. multigrid's PCG iterations grow with the ratio and amg's hardly
 # do, so amg's dearer cycle pays on the stiff sheets and not on the soft ones (per solve, on
 # systems captured from each run at its own tolerance: the 64² hanging sheet of ``benchmarks
 # linalg``, ratio 3.5e5 at 1e-6, 0.95× multigrid's time; the hanging sheet sample, 3.0e4 at 1e-2,
@@ -95,9 +95,9 @@ def make_preconditioner(name, pattern, faces, stiffness=0.0):
     ``multigrid``, a :class:`~clothtool.sim.linalg.multilevel.ModeMultigrid` for ``amg`` (block
     Jacobi on meshes too small to coarsen), a :class:`Hybrid` of the two for ``hybrid``, for
     ``auto`` ``amg`` when the model's ``stiffness`` ratio k h²/m is at least ``AUTO_RATIO`` and
-    ``hybrid`` below, else block Jacobi."""
+    ``multigrid`` below, else block Jacobi."""
     if name == "auto":
-        name = "amg" if stiffness >= AUTO_RATIO else "hybrid"
+        name = "amg" if stiffness >= AUTO_RATIO else "multigrid"
     if name == "multigrid" and pattern.n > COARSEST:
         return Hierarchy.for_mesh(pattern, faces)
     if name == "amg" and pattern.n > MODES_COARSEST:
@@ -107,7 +107,7 @@ def make_preconditioner(name, pattern, faces, stiffness=0.0):
     return BlockJacobi(pattern.n)
 
 
-@njit_inner(cache=True)
+@njit(cache=True)
 def _dot(a, b):
     """Σ a·b over (N, 3) arrays."""
     total = 0.0
@@ -116,7 +116,7 @@ def _dot(a, b):
     return total
 
 
-@njit_inner(cache=True)
+@njit(cache=True)
 def _apply_inverse(inv, r, z):
     for i in range(r.shape[0]):
         b = inv[i]
@@ -125,7 +125,7 @@ def _apply_inverse(inv, r, z):
         z[i, 2] = b[2, 0] * r[i, 0] + b[2, 1] * r[i, 1] + b[2, 2] * r[i, 2]
 
 
-@njit_inner(cache=True)
+@njit(cache=True)
 def _axpy(alpha, x, y):
     """y += alpha x."""
     for i in range(x.shape[0]):
@@ -134,7 +134,7 @@ def _axpy(alpha, x, y):
         y[i, 2] += alpha * x[i, 2]
 
 
-@njit_inner(cache=True)
+@njit(cache=True)
 def _xpby(x, beta, y):
     """y = x + beta y."""
     for i in range(x.shape[0]):
@@ -143,7 +143,7 @@ def _xpby(x, beta, y):
         y[i, 2] = x[i, 2] + beta * y[i, 2]
 
 
-@njit_inner(cache=True)
+@njit(cache=True)
 def _precondition(inv, r, kind, constrained, z, mg, row_ptr, col, values, modes):
     """z = S P⁻¹ r: the mode multigrid's cycle when ``modes`` holds one, the multigrid V-cycle
     when ``mg`` does, block Jacobi when ``inv`` does. The two absent are ``None``: numba prunes
@@ -190,7 +190,7 @@ def _arrays(preconditioner):
     return preconditioner.inverse, None, None
 
 
-@njit_inner(cache=True)
+@njit(cache=True)
 def _residual_with(row_ptr, col, values, extra, b, x, r):
     """r = b − (A + H_extra) x."""
     residual(row_ptr, col, values, b, x, r)

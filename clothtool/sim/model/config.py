@@ -683,7 +683,7 @@ class Solver(Section):
     block Jacobi or an aggregation multigrid V-cycle (``amg``: its coarse spaces carry
     cloth's near-null modes, rebuilt from the positions at every step; ``hybrid``: ``amg`` for
     the tight solves, ``multigrid`` for the loose ones; ``auto``: ``amg`` on stiff models,
-    ``hybrid`` on soft ones). ``newton_iterations: 1`` is
+    ``multigrid`` on soft ones). ``newton_iterations: 1`` is
     Baraff–Witkin's linearised step. A step whose speed exceeds ``max_speed`` (m/s)
     counts as a blow-up. ``friction_velocity`` ε_v (m/s) is the sliding speed below which
     contact friction holds (it creeps at most at ε_v where Coulomb's law sticks).
@@ -720,7 +720,7 @@ class Solver(Section):
                                   "`hybrid` (`amg` for the solves to a relative residual of 1e-4 "
                                   "or finer, `multigrid` for the looser ones), `auto` (`amg` "
                                   "when the stiffest membrane k over the free vertices' mean "
-                                  "mass m gives k h²/m ≥ 1e5 at the step h, `hybrid` below) or "
+                                  "mass m gives k h²/m ≥ 1e5 at the step h, `multigrid` below) or "
                                   "`jacobi` (block Jacobi)")
     newton_iterations: int = setting(20, integer(minimum=1),
                                      "Newton steps per solver step, at most (1 = "
