@@ -92,7 +92,7 @@ solver:
   substeps: 1           # solver steps per frame
   tolerance: 1.0e-6     # relative residual of the linear solve (the first Newton step's; later ones ask less)
   max_iterations: 500   # conjugate-gradient iterations per solve, at most
-  preconditioner: multigrid  # multigrid (aggregation V-cycle), amg (rigid and shear modes), hybrid, auto or jacobi
+  preconditioner: auto  # auto (amg on stiff models, multigrid on soft ones), multigrid (aggregation V-cycle), amg (rigid and shear modes), hybrid or jacobi
   newton_iterations: 20 # Newton steps per solver step, at most (1 = Baraff–Witkin's linearised step)
   newton_tolerance: 0.04  # m/s, Newton stops when the largest velocity correction max|Δx|/h is below
   friction_velocity: 1.0e-4  # m/s, contact friction holds below this sliding speed (IPC's ε_v)

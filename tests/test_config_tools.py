@@ -22,7 +22,7 @@ SPEC_DEFAULTS = {  # the documented example, entry by entry, and the simulator's
               "collision_margin": 2.0e-3, "activation_distance": None, "self_collision": None,
               "attach": []},
     "solver": {"method": "implicit", "integrator": "bdf2", "substeps": 1, "tolerance": 1.0e-6,
-               "max_iterations": 500, "preconditioner": "multigrid",
+               "max_iterations": 500, "preconditioner": "auto",
                "newton_iterations": 20, "newton_tolerance": 0.04, "friction_velocity": 1.0e-4,
                "overshoot_bound": False, "slow_slip_bound": 0.0, "forcing_from_second": False, "first_forcing": 0.0,
                "first_cut_iterations": 20,

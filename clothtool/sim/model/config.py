@@ -714,7 +714,7 @@ class Solver(Section):
                                "within [tolerance, 0.15] (Eisenstat–Walker); the sample config "
                                "uses 1e-2")
     max_iterations: int = setting(500, integer(minimum=1), "PCG iterations per Newton step")
-    preconditioner: str = setting("multigrid", choice(PRECONDITIONERS),
+    preconditioner: str = setting("auto", choice(PRECONDITIONERS),
                                   "`multigrid` (aggregation of translations), `amg` (aggregation "
                                   "of each aggregate's rigid motions and in-plane shears), "
                                   "`hybrid` (`amg` for the solves to a relative residual of 1e-4 "
