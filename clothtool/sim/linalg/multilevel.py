@@ -107,6 +107,10 @@ class ModeMultigrid:
         self.fine_mirror = transposes(pattern.row_ptr, pattern.col)
         self.diagonal = np.zeros((pattern.n, 3, 3))  # the fine diagonal blocks, one after another
         self.first = np.zeros((self.block_off[1], M, M), dtype=smoother)  # first coarse level
+        # the kernels unpack it by position: 0–13 the levels, 14–17 the cycle's work arrays
+        # (r, z, t on the coarse levels, t0 the fine residual), 18 the fine diagonal slots,
+        # 19 and 20 the single-precision copies of the fine and first coarse level, 21 the fine
+        # diagonal blocks in double precision
         self.modes = (self.q, self.agg0, self.dinv0, self.node_off, self.block_off,
                        self.row_off, self.row_ptr, self.col, self.values, self.dinv,
                        self.transfer, self.cagg, self.coarsest, np.concatenate(self.cdiag),
@@ -287,7 +291,7 @@ def _coarse_vcycle(mg, r, z, t):
     level's sweeps reading its single-precision copy, its diagonal blocks the double ones)."""
     (_, _, _, node_off, block_off, row_off, c_row_ptr, c_col, c_values, c_dinv,
      transfer, c_agg, coarsest, c_diag) = mg[:14]
-    first = mg[20]
+    first = mg[20]  # the first coarse level's single-precision copy
     levels = node_off.shape[0] - 1
     for c in range(levels - 1):  # down: pre-smooth, restrict the residual
         lo, hi = node_off[c], node_off[c + 1]
@@ -326,8 +330,8 @@ def mode_cycle(rhs, out, row_ptr, col, values, mg):
     """out = B rhs: a forward block Gauss–Seidel sweep, the coarse correction (a V-cycle on the
     coarse levels, the coarsest solved by its Cholesky factor), a backward sweep."""
     q0, agg0, dinv0, node_off = mg[:4]
-    r, z, t, t0, diag, single = mg[14:20]
-    forward_from_zero3(row_ptr, col, diag, single, mg[21], dinv0, rhs, out, t0)
+    r, z, t, t0, diag, single, _, diagonal = mg[14:22]
+    forward_from_zero3(row_ptr, col, diag, single, diagonal, dinv0, rhs, out, t0)
     lo, hi = node_off[0], node_off[1]
     _restrict3(q0, agg0, t0, r[lo:hi])
     _coarse_vcycle(mg, r, z, t)
