@@ -99,6 +99,7 @@ solver:
   overshoot_bound: false  # contact friction: a slip a Newton step turned over takes the bound's curvature
   slow_slip_bound: 0.0  # m/s, contact friction: slips slower than this take the bound's curvature (0 = off)
   forcing_from_second: false  # contact: the linear solves' Eisenstat–Walker ratio starts at Newton's second iterate
+  short_step_forcing: false  # after a step the line search shortened to s, the next linear solve asks for s times the forcing
   first_forcing: 0.0  # contact: Newton's first linear solve of a step asks for this relative residual (0 = solver.tolerance)
   first_cut_iterations: 0  # contact: Newton's first linear solve of a step stops after this many iterations when CCD cuts its guess short (0 = off)
   line_search: true     # backtracking line search on the Newton steps

@@ -749,6 +749,12 @@ class Solver(Section):
                                         "second iterate (the step's start is no iterate of "
                                         "the minimisation), so the second PCG solve asks "
                                         "for 0.15")
+    short_step_forcing: bool = setting(False, flag,
+                                       "after a Newton step the line search shortened to a "
+                                       "fraction s, the next PCG asks for s times "
+                                       "Eisenstat–Walker's forcing (at its cap of 0.15 Newton "
+                                       "took the same loose direction again: at stick–slip it "
+                                       "ran to its cap of steps)")
     first_forcing: float = setting(0.0, number(minimum=0, below=1),
                                    "contact: Newton's first PCG of a step solves to this "
                                    "relative residual (the step from x_n that CCD cuts "

@@ -41,7 +41,8 @@ PCG solves to ``solver.tolerance``, later ones to η = 0.9 (‖∇E_k‖/‖∇E
 least ``solver.tolerance`` and at most 0.15 (with ``solver.forcing_from_second``, the second
 at 0.15 when Newton starts at x_n: that start is no iterate of the minimisation, and with
 friction BDF2's velocity there turns every slip; with ``solver.first_forcing`` η₀, the first
-at η₀ when Newton starts at x_n: at impact that step is long and CCD cuts it to a tenth or
+at η₀ when Newton starts at x_n; with ``solver.short_step_forcing``, after a step the line
+search shortened to a fraction s, the next at s times η: at impact that step is long and CCD cuts it to a tenth or
 a quarter, and a PCG to 1e-6 over it ran to its cap of iterations for a direction the next
 steps replace; with ``solver.first_cut_iterations`` k, that first PCG stops after k
 iterations when CCD over the step's candidates already cuts its guess short), each
@@ -378,7 +379,7 @@ class NewtonIntegrator(Integrator):
         constraints = ConstraintFilter(self.model.kind, self.model.has_pins)
         self.preconditioner.update(x, constraints)
         tol, grad = solver.newton_tolerance if tol is None else tol, self._grad
-        forcing, g_prev, step, cut = solver.tolerance, 0.0, 1.0, False
+        forcing, g_prev, step, cut, shortened = solver.tolerance, 0.0, 1.0, False, False
         if solver.first_forcing > 0.0 and stage.from_state and solver.newton_iterations > 1:
             forcing = max(solver.tolerance, solver.first_forcing)
         line_search = solver.line_search or any(t.needs_line_search for t in terms)
@@ -399,6 +400,14 @@ class NewtonIntegrator(Integrator):
                 # forcing term with no PCG iteration, so Newton repeated it until it gave up
                 dx = np.zeros_like(dx) if cut else (1.0 - step) * dx
                 forcing = eisenstat_walker(g_norm, g_prev, forcing, solver.tolerance)
+                if shortened and solver.short_step_forcing:
+                    # the line search kept the fraction ``step`` of the last direction, and
+                    # the gradient's ratio says what that fraction gained, not how good the
+                    # direction was: at the forcing's cap Newton took the same loose
+                    # direction again and at stick–slip crawled to its cap of steps (the 15°
+                    # cloth incline with slow_slip_bound braked, under whichever
+                    # preconditioner and tolerance led a step there): ask that fraction of it
+                    forcing = max(solver.tolerance, forcing * step)
             # solver.forcing_from_second: a stage from the state (contact) starts the ratios at
             # its second iterate: x_n is where collision-freedom puts Newton, not a step of its
             # minimisation (there BDF2's velocity turns every friction slip, and the first
@@ -436,8 +445,10 @@ class NewtonIntegrator(Integrator):
                 raise NumericalError("the linear solve produced non-finite values")
             step = min((term.max_step(x, dx) for term in terms), default=1.0)
             cut = step < 1.0
+            shortened = False
             if line_search and not prescribed:
-                step = self._line_search(x, dx, energy, step)
+                cut_to, step = step, self._line_search(x, dx, energy, step)
+                shortened = step < cut_to
             if step > 0.0:
                 x += step * dx
             for term in terms:
