@@ -758,7 +758,8 @@ class Solver(Section):
                                         "cuts short the guess of Newton's first PCG of a step "
                                         "(the motion x̃ − x_n runs into a surface), that PCG "
                                         "stops after at most this many iterations (its "
-                                        "proposal is cut at the first contact anyway); 0 = off")
+                                        "proposal is cut at the first contact anyway); not "
+                                        "while a garment's seams are sewn; 0 = off")
     line_search: bool = setting(True, flag,
                                 "halve a Newton step until the incremental potential does not "
                                 "increase")
