@@ -52,7 +52,7 @@ material:
   bend_model: hessian   # hessian (plate: the stated rigidity on any flat-resting mesh), dihedral (hinges) or quadratic
   damping_model: strain # strain (stretch, shear and bending damped by their change over the step: a rigid motion feels none; the other methods use their own βK) or frozen (βK at the step's start: resists rotation, the cloth creeps)
   bending_length: null  # m, instead of bend: the cantilever test's c, bend = density · 9.81 · c³
-  plate_correction: false  # hessian plate: add back the energy its smoothing loses (folds a few triangles wide)
+  plate_correction: false  # hessian plate: add back the energy its smoothing loses (folds a few triangles wide); fitted: β fitted on the mesh
   membrane_model: triangle  # triangle, nodal (stretch smoothed per vertex and panel: drapes alike on any mesh) or edge (stretch and shear smoothed per edge, any mesh)
   preset: null          # a measured fabric (clothtool fabric --list): fills the keys not given here
   kes: null             # KES-F values {B: gf·cm²/cm, G: gf/cm·deg, EMT: %, W: mg/cm²} for those keys
@@ -101,7 +101,7 @@ solver:
   forcing_from_second: false  # contact: the linear solves' Eisenstat–Walker ratio starts at Newton's second iterate
   short_step_forcing: false  # after a step the line search shortened to s, the next linear solve asks for s times the forcing
   first_forcing: 0.0  # contact: Newton's first linear solve of a step asks for this relative residual (0 = solver.tolerance)
-  first_cut_iterations: 0  # contact: Newton's first linear solve of a step stops after this many iterations when CCD cuts its guess short (0 = off)
+  first_cut_iterations: 20  # contact: Newton's first linear solve of a step stops after this many iterations when CCD cuts its guess short (not while sewing; 0 = off)
   line_search: true     # backtracking line search on the Newton steps
   stiffness_continuation: auto  # implicit: solve each step first with the membrane 10^n … 10× softer (stiff cloth at large steps); auto = n from k·ĥ²/m; 0 = off
   continuation_after: 20  # with stiffness_continuation: only solves Newton alone stalls on (unconverged after this many steps, half of them stiffness-bound); 0 = every solve

@@ -188,6 +188,13 @@ def one_word(value, key):
 KES_KEYS = {"density": "W", "bend": "B", "shear": "G", "stretch": "EMT"}
 
 
+def correction(value, key):
+    """``plate_correction``: true, false or ``fitted``."""
+    if not (isinstance(value, bool) or value == "fitted"):
+        raise type_error(key, "true, false or fitted", value)
+    return value
+
+
 def both_or_neither(bend, key):
     """A [warp, weft] ``bend`` bends both ways or not at all."""
     if isinstance(bend, tuple) and (bend[0] > 0.0) != (bend[1] > 0.0):
@@ -282,11 +289,14 @@ class Material(Section):
                                                    "bending length c (or `[warp, weft]`), "
                                                    "`bend` = `density` · 9.81 · c³ (giving "
                                                    "both is an error)")
-    plate_correction: bool = setting(False, flag,
-                                     "`hessian` bending: correct the smoothing of each vertex's "
-                                     "Hessian estimate (a fourth-order term, β h²‖∇Ĥ‖²), so that "
-                                     "folds a few triangles wide keep their bending energy on a "
-                                     "coarse mesh ([Textile units](#textile-units-and-tests))")
+    plate_correction: bool | str = setting(False, correction,
+                                           "`hessian` bending: correct the smoothing of each "
+                                           "vertex's Hessian estimate (a fourth-order term, "
+                                           "β h²‖∇Ĥ‖², β = 0.15), so that folds a few triangles "
+                                           "wide keep their bending energy on a coarse mesh; "
+                                           "`fitted`: β fitted on the mesh's own plane waves "
+                                           "(a polar mesh needs more than a grid) "
+                                           "([Textile units](#textile-units-and-tests))")
     membrane_model: str = setting("triangle", choice(MEMBRANE_MODELS),
                                   "`triangle` (stretch and shear per linear triangle) or "
                                   "`nodal`: warp and weft stretch on each vertex's smoothed "
@@ -759,12 +769,13 @@ class Solver(Section):
                                    "contact: Newton's first PCG of a step solves to this "
                                    "relative residual (the step from x_n that CCD cuts "
                                    "short at impact); 0 = solver.tolerance")
-    first_cut_iterations: int = setting(0, integer(minimum=0),
+    first_cut_iterations: int = setting(20, integer(minimum=0),
                                         "contact: when CCD over the step's candidate pairs "
                                         "cuts short the guess of Newton's first PCG of a step "
                                         "(the motion x̃ − x_n runs into a surface), that PCG "
                                         "stops after at most this many iterations (its "
-                                        "proposal is cut at the first contact anyway); 0 = off")
+                                        "proposal is cut at the first contact anyway); not "
+                                        "while a garment's seams are sewn; 0 = off")
     line_search: bool = setting(True, flag,
                                 "halve a Newton step until the incremental potential does not "
                                 "increase")
