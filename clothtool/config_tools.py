@@ -52,7 +52,7 @@ material:
   bend_model: hessian   # hessian (plate: the stated rigidity on any flat-resting mesh), dihedral (hinges) or quadratic
   damping_model: strain # strain (stretch, shear and bending damped by their change over the step: a rigid motion feels none; the other methods use their own βK) or frozen (βK at the step's start: resists rotation, the cloth creeps)
   bending_length: null  # m, instead of bend: the cantilever test's c, bend = density · 9.81 · c³
-  plate_correction: false  # hessian plate: add back the energy its smoothing loses (folds a few triangles wide)
+  plate_correction: false  # hessian plate: add back the energy its smoothing loses (folds a few triangles wide); fitted: β fitted on the mesh
   membrane_model: triangle  # triangle, nodal (stretch smoothed per vertex and panel: drapes alike on any mesh) or edge (stretch and shear smoothed per edge, any mesh)
   preset: null          # a measured fabric (clothtool fabric --list): fills the keys not given here
   kes: null             # KES-F values {B: gf·cm²/cm, G: gf/cm·deg, EMT: %, W: mg/cm²} for those keys

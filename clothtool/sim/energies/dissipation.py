@@ -46,6 +46,7 @@ from clothtool.sim.energies.membrane import (add_triangle, deformation, deformat
                                              shear_outer, to_vertices)
 from clothtool.sim.energies.membrane_edge import edge_density
 from clothtool.sim.energies.plate import quadratic_form
+from clothtool.sim.energies.terms import EdgeMembrane
 from clothtool.vec3 import add, dot, load, scale
 
 EPS = 1e-12
@@ -204,7 +205,7 @@ class StrainDissipation:
         self.faces, self.dr_inv, self.area = model.faces, model.dr_inv, model.area
         self.slots = model.tri_slots
         self.membrane, self.h_eff = membrane, 1.0
-        self.edge = membrane if getattr(membrane, "cells", None) is not None else None
+        self.edge = membrane if isinstance(membrane, EdgeMembrane) else None
         triangles = membrane is not None and self.edge is None
         self.stretch = membrane.stretch if triangles else np.zeros((0, 4))
         self.shear = membrane.shear if triangles else np.zeros(0)

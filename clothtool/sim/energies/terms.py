@@ -139,8 +139,8 @@ class EdgeMembrane(Term):
     def exact_remainder(self, x):
         """The exact Hessian at x minus :meth:`assemble`'s unprojected one (sparse (3N, 3N),
         :func:`~clothtool.sim.energies.membrane_edge.edge_exact_remainder`): statics adds it
-        for its exact Newton steps."""
-        self.stresses(x, False)
+        for its exact Newton steps. Called right after :meth:`assemble` at the same x: it
+        reads the cells' ∂²Ψ/∂C² that assembly kept (projection leaves them as they are)."""
         return edge_exact_remainder(x, self.faces, self.dr_inv, self.cells, self.turn,
                                     self.weight, self.cell_area, self.stress)
 

@@ -255,13 +255,13 @@ class ModelBuilder:
         bend_model, hinge, hinge_faces, rest_angle, coef, weights = self._bending()
         plate = plate_matrix = None
         if bend_model == "hessian":
-            from clothtool.sim.energies.plate import SHARPEN, plate_matrices
+            from clothtool.sim.energies.plate import FITTED, SHARPEN, plate_matrices
 
             uv = mesh.uv if mesh.uv is not None else plane_pattern(mesh.rest3d)
             rigidity, anisotropy = self._plate_rigidity()
             q, correction = plate_matrices(
                 uv, faces, self._per_vertex(rigidity), anisotropy, pinned,
-                sharpen=SHARPEN if self.material.plate_correction else 0.0)
+                sharpen={False: 0.0, True: SHARPEN, FITTED: FITTED}[self.material.plate_correction])
             plate = _csr(q if correction is None else q + correction)
             plate_matrix = None if correction is None else _csr(q)
         membrane_model, cells, frames = self._membrane_model()

@@ -188,6 +188,13 @@ def one_word(value, key):
 KES_KEYS = {"density": "W", "bend": "B", "shear": "G", "stretch": "EMT"}
 
 
+def correction(value, key):
+    """``plate_correction``: true, false or ``fitted``."""
+    if not (isinstance(value, bool) or value == "fitted"):
+        raise type_error(key, "true, false or fitted", value)
+    return value
+
+
 def both_or_neither(bend, key):
     """A [warp, weft] ``bend`` bends both ways or not at all."""
     if isinstance(bend, tuple) and (bend[0] > 0.0) != (bend[1] > 0.0):
@@ -282,11 +289,14 @@ class Material(Section):
                                                    "bending length c (or `[warp, weft]`), "
                                                    "`bend` = `density` · 9.81 · c³ (giving "
                                                    "both is an error)")
-    plate_correction: bool = setting(False, flag,
-                                     "`hessian` bending: correct the smoothing of each vertex's "
-                                     "Hessian estimate (a fourth-order term, β h²‖∇Ĥ‖²), so that "
-                                     "folds a few triangles wide keep their bending energy on a "
-                                     "coarse mesh ([Textile units](#textile-units-and-tests))")
+    plate_correction: bool | str = setting(False, correction,
+                                           "`hessian` bending: correct the smoothing of each "
+                                           "vertex's Hessian estimate (a fourth-order term, "
+                                           "β h²‖∇Ĥ‖², β = 0.15), so that folds a few triangles "
+                                           "wide keep their bending energy on a coarse mesh; "
+                                           "`fitted`: β fitted on the mesh's own plane waves "
+                                           "(a polar mesh needs more than a grid) "
+                                           "([Textile units](#textile-units-and-tests))")
     membrane_model: str = setting("triangle", choice(MEMBRANE_MODELS),
                                   "`triangle` (stretch and shear per linear triangle) or "
                                   "`nodal`: warp and weft stretch on each vertex's smoothed "
