@@ -100,7 +100,7 @@ solver:
   slow_slip_bound: 0.0  # m/s, contact friction: slips slower than this take the bound's curvature (0 = off)
   forcing_from_second: false  # contact: the linear solves' Eisenstat–Walker ratio starts at Newton's second iterate
   first_forcing: 0.0  # contact: Newton's first linear solve of a step asks for this relative residual (0 = solver.tolerance)
-  first_cut_iterations: 0  # contact: Newton's first linear solve of a step stops after this many iterations when CCD cuts its guess short (0 = off)
+  first_cut_iterations: 20  # contact: Newton's first linear solve of a step stops after this many iterations when CCD cuts its guess short (not while sewing; 0 = off)
   line_search: true     # backtracking line search on the Newton steps
   stiffness_continuation: auto  # implicit: solve each step first with the membrane 10^n … 10× softer (stiff cloth at large steps); auto = n from k·ĥ²/m; 0 = off
   continuation_after: 20  # with stiffness_continuation: only solves Newton alone stalls on (unconverged after this many steps, half of them stiffness-bound); 0 = every solve

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from clothtool.errors import NumericalError
+from clothtool.errors import InputError, NumericalError
 from clothtool.sim.model.config import Config, load_config
 
 
@@ -79,6 +79,7 @@ def simulate(config_or_path, *, output_dir=None, overrides=None, progress=True, 
     builder = ModelBuilder.from_config(config)
     model = builder.finalize()
     raised = False  # has the sewing raised the stitch stiffness
+    refused = None  # the first frame whose weld failed the welded start's check
     # frames keep the file's vertices and faces, after a weld too
     written_mesh = model.mesh if builder.file_mesh is None else builder.file_mesh
     for a, b, count, length in builder.closed_seams:
@@ -149,13 +150,25 @@ def simulate(config_or_path, *, output_dir=None, overrides=None, progress=True, 
                     raise NumericalError(_blowup(frame, what, out_dir))
             totals.add(report)
             if model.stitches is not None:  # sewing: weld once every seam pair is close
-                if sewn(model, state.x, builder):
+                welded = _weld(builder, model, state, config) if sewn(model, state.x,
+                                                                      builder) else None
+                if isinstance(welded, str):  # its welded start would cross: sew on
+                    if refused is None:
+                        refused = frame
+                        note(f"mesh.seams: sewn at frame {frame} but not welded: the welded "
+                             f"garment's start fails the contact's check ({welded}); sewing "
+                             "on until it passes")
+                    if state.time >= config.mesh.sewing.time:
+                        raise NumericalError(
+                            f"simulation failed at frame {frame}: mesh.seams sewn since frame "
+                            f"{refused} but not welded in mesh.sewing.time "
+                            f"({config.mesh.sewing.time:g} s): the welded garment's start "
+                            f"fails the contact's check ({welded})")
+                elif welded is not None:
                     note(f"mesh.seams: sewn and welded at frame {frame} (t = {state.time:.3g} s)"
                          + (f", the stitch stiffness raised to {stitch_level(builder):.3g} N/m "
                             "per metre of seam" if raised else ""))
-                    builder, state = builder.welded(model, state)
-                    model = builder.finalize()
-                    integrator = make_integrator(model, config.solver, config.step)
+                    builder, state, model, integrator = welded
                     contact = integrator.contact
                 else:
                     if state.time >= config.mesh.sewing.time:
@@ -177,6 +190,22 @@ def simulate(config_or_path, *, output_dir=None, overrides=None, progress=True, 
                             sweeps=totals.sweeps, substeps=totals.substeps,
                             first_step_s=step_times[0] if step_times else 0.0,
                             step_s=step_times[1:], notes=notes)
+
+
+def _weld(builder, model, state, config):
+    """(builder, state, model, integrator) of the garment welded from ``state``, or why its
+    welded start fails the contact's start check (a crossing, or a pair inside the barrier's
+    wall): each sewn pair jumps to its mean, which can carry a triangle through a surface the
+    barrier holds a wall's depth away."""
+    from clothtool.sim.model.methods import make_integrator
+
+    welded, start = builder.welded(model, state.copy())
+    welded_model = welded.finalize()
+    try:
+        integrator = make_integrator(welded_model, config.solver, config.step)
+    except InputError as exc:
+        return str(exc)
+    return welded, start, welded_model, integrator
 
 
 def _write_config(config, out_dir):

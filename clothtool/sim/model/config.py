@@ -763,12 +763,13 @@ class Solver(Section):
                                    "contact: Newton's first PCG of a step solves to this "
                                    "relative residual (the step from x_n that CCD cuts "
                                    "short at impact); 0 = solver.tolerance")
-    first_cut_iterations: int = setting(0, integer(minimum=0),
+    first_cut_iterations: int = setting(20, integer(minimum=0),
                                         "contact: when CCD over the step's candidate pairs "
                                         "cuts short the guess of Newton's first PCG of a step "
                                         "(the motion x̃ − x_n runs into a surface), that PCG "
                                         "stops after at most this many iterations (its "
-                                        "proposal is cut at the first contact anyway); 0 = off")
+                                        "proposal is cut at the first contact anyway); not "
+                                        "while a garment's seams are sewn; 0 = off")
     line_search: bool = setting(True, flag,
                                 "halve a Newton step until the incremental potential does not "
                                 "increase")

@@ -14,7 +14,12 @@ same force per metre at any resolution. Once every pair is within ``mesh.sewing.
 default the self-collision thickness: as close as the barrier lets two surfaces come), the
 pairs are welded: each group of sewn vertices becomes one vertex at their mean position and
 velocity, each triangle keeps its own corners' rest shape (its pattern), and the garment is
-finalized again without stitches. Welding rather than keeping stiff stitches: a stitch held
+finalized again without stitches. The weld is made only when that welded garment's start
+passes the contact's start check (no crossing, no pair inside the barrier's wall): each
+pair's jump to its mean moves a vertex up to half the weld distance, farther than the wall's
+depth that the barrier can press cloth to, so a fold pressed against the seam could be carried
+through; a weld that fails the check waits (sewing goes on) and, still failing at
+``sewing.time``, stops the run naming the check. Welding rather than keeping stiff stitches: a stitch held
 by the barrier stays a thickness open (1–2 mm), its pairs cost barrier terms for the rest of
 the run, and no hinge bends across it; the welded seam is closed (0 mm) and bends like cloth.
 """

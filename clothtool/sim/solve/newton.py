@@ -44,7 +44,8 @@ friction BDF2's velocity there turns every slip; with ``solver.first_forcing`` �
 at η₀ when Newton starts at x_n: at impact that step is long and CCD cuts it to a tenth or
 a quarter, and a PCG to 1e-6 over it ran to its cap of iterations for a direction the next
 steps replace; with ``solver.first_cut_iterations`` k, that first PCG stops after k
-iterations when CCD over the step's candidates already cuts its guess short), each
+iterations when CCD over the step's candidates already cuts its guess short, except
+while a garment is sewn), each
 warm-started from what the line search left of the previous step. A single Newton step
 (``newton_iterations: 1``) starts from x_n instead, with the PCG guess h v_n: that is
 exactly Baraff–Witkin's linearised step
@@ -169,6 +170,9 @@ class NewtonIntegrator(Integrator):
         self.matrix = BlockMatrix(pattern)
         self._grad = np.zeros((n, 3))
         self._free_mass = float(np.sum(model.mass[model.free]))
+        # a garment being sewn: no first cut (the stitches, not the guess, drive its steps;
+        # capped at 10–30 iterations the benchmark garment's seams closed curled and stuck)
+        self.sewing = model.stitches is not None
         # solver.stiffness_continuation: auto: k the stiffest membrane (stretch or shear, N/m),
         # m the free vertices' mean mass (kg), fixed for the run
         self._stiffest = max(float(model.tri_stretch[:, :2].max()), float(model.tri_shear.max()))
@@ -419,7 +423,8 @@ class NewtonIntegrator(Integrator):
             # surface proposes a motion that CCD cuts at the first contact; its PCG stops early
             limit = solver.max_iterations
             if (it == 0 and solver.first_cut_iterations and stage.from_state and not prescribed
-                    and solver.newton_iterations > 1 and any(t.cuts(x, dx) for t in terms)):
+                    and not self.sewing and solver.newton_iterations > 1
+                    and any(t.cuts(x, dx) for t in terms)):
                 limit = min(limit, solver.first_cut_iterations)
             # prescribed motion still short of its goal puts the barrier's coupling −H_cX ΔX
             # (up to 1e22·m/ĥ² an entry) into the right-hand side, and one PCG iteration
