@@ -59,13 +59,23 @@ def spd_inverse3(a, floor, out):
     eigenvalues, e.g. the inertia m/h² under PSD stiffness blocks; 0: none known).
 
     Well-conditioned blocks (det ≥ HADAMARD · a00 a11 a22, Hadamard's bound being det ≤ the
-    product of the diagonal for SPD matrices) are inverted by cofactors. Otherwise the stored
-    block has lost its small eigenvalues to rounding — a barrier block of 1e22·m/h² along one
-    direction over m/h² I stores m/h² below the last bit, and its cofactor determinant comes
-    out zero or negative — and the inverse is V diag(1/max(λ, floor)) Vᵀ from a cyclic Jacobi
-    eigen-decomposition (Golub & Van Loan, "Matrix Computations", §8.5), which keeps the
-    large eigenvector exact and restores the lost ones to the floor. A matrix with NaN gives
-    NaN."""
+    product of the diagonal for SPD matrices) are inverted by cofactors
+    (:func:`cofactor_inverse3`). Otherwise the stored block has lost its small eigenvalues to
+    rounding — a barrier block of 1e22·m/h² along one direction over m/h² I stores m/h² below
+    the last bit, and its cofactor determinant comes out zero or negative — and the inverse is
+    :func:`eigen_inverse3`'s. A matrix with NaN gives NaN."""
+    if not cofactor_inverse3(a, out):
+        eigen_inverse3(a, floor, out)
+
+
+@njit_inner(cache=True)
+def cofactor_inverse3(a, out):
+    """:func:`spd_inverse3`'s first part: True when it wrote out = a⁻¹ by cofactors (a + aᵀ
+    halved, well-conditioned: det ≥ HADAMARD · a00 a11 a22 > 0) or NaN (a has NaN), False
+    (out untouched) when a needs :func:`eigen_inverse3`. Kernels that meet such blocks only
+    at contact call this one and leave those blocks to a second pass, so that the
+    eigen-decomposition is compiled only where it runs (about 0.75 s of a first run's
+    compilation)."""
     a00, a11, a22 = a[0, 0], a[1, 1], a[2, 2]
     a01, a02, a12 = 0.5 * (a[0, 1] + a[1, 0]), 0.5 * (a[0, 2] + a[2, 0]), 0.5 * (a[1, 2] + a[2, 1])
     c00 = a11 * a22 - a12 * a12
@@ -76,7 +86,7 @@ def spd_inverse3(a, floor, out):
     if not (a00 == a00 and a11 == a11 and a22 == a22 and a01 == a01 and a02 == a02
             and a12 == a12):
         out[:, :] = np.nan
-        return
+        return True
     if a00 > 0.0 and a11 > 0.0 and a22 > 0.0 and det >= HADAMARD * diagonal and det > 0.0:
         r = 1.0 / det
         out[0, 0] = c00 * r
@@ -85,7 +95,19 @@ def spd_inverse3(a, floor, out):
         out[1, 1] = (a00 * a22 - a02 * a02) * r
         out[1, 2] = out[2, 1] = (a01 * a02 - a00 * a12) * r
         out[2, 2] = (a00 * a11 - a01 * a01) * r
-        return
+        return True
+    return False
+
+
+@njit_inner(cache=True)
+def eigen_inverse3(a, floor, out):
+    """out = V diag(1/max(λ, floor)) Vᵀ of a + aᵀ halved, from a cyclic Jacobi
+    eigen-decomposition (Golub & Van Loan, "Matrix Computations", §8.5): :func:`spd_inverse3`
+    for the blocks that lost their small eigenvalues to rounding. It keeps the large
+    eigenvector exact and restores the lost ones to the floor (eigenvalues below ROUNDING ×
+    the largest are rounding; with no floor either, out = 0)."""
+    a00, a11, a22 = a[0, 0], a[1, 1], a[2, 2]
+    a01, a02, a12 = 0.5 * (a[0, 1] + a[1, 0]), 0.5 * (a[0, 2] + a[2, 0]), 0.5 * (a[1, 2] + a[2, 1])
     m = np.empty((3, 3))
     m[0, 0], m[1, 1], m[2, 2] = a00, a11, a22
     m[0, 1] = m[1, 0] = a01

@@ -134,3 +134,33 @@ def test_a_tolerance_that_welds_a_panel_to_itself_is_one_line_and_writes_nothing
     assert "mesh.weld_tolerance: 0.06 m would weld vertices" in proc.stderr
     assert "of one panel (left), 0.05 m apart" in proc.stderr
     assert not out.exists()
+
+
+def test_the_rim_is_shown_apart_without_the_kd_tree_only_when_the_kd_tree_finds_no_pair():
+    """weld_closed_seams skips scipy's KD-tree when a sweep along the widest axis shows no two
+    rim vertices within the tolerance: on random point sets, flat ones and ones with a near
+    pair planted, that never happens where the KD-tree finds a pair, and a single sheet's
+    rim (no pair) is shown apart; a pair just inside the tolerance is not."""
+    from scipy.spatial import cKDTree
+
+    from clothtool.sim.model.seams import _apart
+
+    rng = np.random.default_rng(0)
+    shown = 0
+    for _ in range(1000):
+        n = int(rng.integers(2, 60))
+        pts = rng.normal(size=(n, 3)) * rng.choice([1e-3, 1.0, 100.0])
+        if rng.random() < 0.5:
+            pts[:, rng.integers(3)] = rng.normal()
+        if rng.random() < 0.3:
+            pts[rng.integers(n)] = pts[rng.integers(n)] + 1e-5 * rng.normal(size=3)
+        tol = float(rng.choice([1e-6, 1e-4, 1e-2, 0.5]))
+        apart = _apart(pts, tol)
+        assert not (apart and len(cKDTree(pts).query_pairs(tol)))
+        shown += apart
+    assert shown > 300
+    u, v = np.meshgrid(np.linspace(0, 1, 33), np.linspace(0, 1, 33))
+    sheet = np.column_stack([u.ravel(), np.zeros(u.size), v.ravel()])
+    rim = sheet[(u.ravel() % 1 == 0) | (v.ravel() % 1 == 0)]
+    assert _apart(rim, 1e-4)
+    assert not _apart(np.array([[0.0, 0.0, 0.0], [0.0, 1e-4 * (1 - 1e-9), 0.0]]), 1e-4)

@@ -127,6 +127,31 @@ def test_preconditioners_stay_positive_definite_on_near_singular_barrier_blocks(
         assert res <= tol
 
 
+@pytest.mark.parametrize("k, left", [(1e3, False), (1e22, True)])
+def test_multigrid_block_inverses_are_spd_inverse3s_with_barrier_blocks_left_to_a_second_pass(k,
+                                                                                            left):
+    """The multigrid's fine block inverses are spd_inverse3's of the filtered diagonal blocks,
+    bit for bit, floors included; at 1e22 the barrier blocks fail the cofactor test, which
+    setup_levels leaves to its second pass (eigen_inverses), at 1e3 none does."""
+    from clothtool.sim.linalg.filter import PINNED
+    from clothtool.sim.linalg.multigrid import Hierarchy, setup_levels
+
+    model, matrix = contact_system(k)
+    constraints = ConstraintFilter(model.kind)
+    pre = Hierarchy.for_mesh(model.pattern, model.faces)
+    pending = setup_levels(matrix.values, constraints.kind, constraints.active, matrix.floor,
+                           pre.arrays, pre.pending, pre.pending_floor)
+    fine = {int(v) for v in pre.pending[:pending] if v < model.n_vertices}
+    assert bool(fine) == left and fine <= {5, 17, 40, 41, 77}  # only barrier blocks
+    pre.setup(matrix, constraints)
+    expected = np.empty((3, 3))
+    for v in range(model.n_vertices):
+        pinned = model.kind[v] == PINNED
+        block = np.eye(3) if pinned else matrix.values[model.pattern.diag[v]]
+        spd_inverse3(block, 1.0 if pinned else matrix.floor[v], expected)
+        np.testing.assert_array_equal(pre.diag_inv[v], expected)
+
+
 @pytest.mark.parametrize("k", [1e3, 1e22])
 def test_amg_fine_sweeps_are_those_of_the_matrix_rounded_to_single_precision(k):
     """The mode multigrid's fine and first coarse sweeps read single-precision copies of their

@@ -27,7 +27,7 @@ from clothtool.sim.linalg.filter import FREE, PINNED
 from clothtool.sim.linalg.aggregation import coarsen
 from clothtool.sim.linalg.blocks import BlockPattern
 from clothtool.sim.linalg.relaxation import cholesky, cholesky_solve
-from clothtool.vec3 import copy_into, spd_inverse3
+from clothtool.vec3 import cofactor_inverse3, copy_into, eigen_inverse3
 
 COARSEST = 48  # nodes at which the hierarchy stops (dense Cholesky of ≤ 3·48 unknowns)
 OMEGA = 0.6  # Jacobi smoothing weight (λmax(D⁻¹A) ≤ 2 for these matrices)
@@ -51,8 +51,10 @@ class Hierarchy:
     def setup(self, matrix, constraints):
         """Coarse matrices of a :class:`~clothtool.sim.linalg.blocks.BlockMatrix` filtered by a
         :class:`~clothtool.sim.linalg.blocks.ConstraintFilter` (done again inside every solve)."""
-        setup_levels(matrix.values, constraints.kind, constraints.active, matrix.floor,
-                     self.arrays)
+        pending = setup_levels(matrix.values, constraints.kind, constraints.active,
+                               matrix.floor, self.arrays, self.pending, self.pending_floor)
+        if pending:  # blocks that lost their small eigenvalues (contact barriers)
+            eigen_inverses(self.diag_inv, self.pending[:pending], self.pending_floor[:pending])
 
     def update(self, x, constraints):
         """Nothing depends on the positions."""
@@ -81,6 +83,9 @@ class Hierarchy:
         self.r = np.zeros((self.node_off[-1], 3))
         self.z = np.zeros((self.node_off[-1], 3))
         self.t = np.zeros((self.node_off[-1], 3))
+        # the diagonal blocks setup_levels leaves to eigen_inverses: nodes and floors
+        self.pending = np.zeros(self.node_off[-1], np.int64)
+        self.pending_floor = np.zeros(self.node_off[-1])
         # the tuple the numba kernels take
         self.arrays = (self.node_off, self.block_off, self.row_ptr, self.row_off, self.col,
                        self.agg, self.slot_map, self.values, self.diag_inv, self.coarsest, self.r,
@@ -99,7 +104,7 @@ def _filtered_block(b, i, j, kind, out):
 
 
 @njit(cache=True)
-def setup_levels(fine, kind, constrained, floor, mg):
+def setup_levels(fine, kind, constrained, floor, mg, pending, pending_floor):
     """Coarse matrices, block-diagonal inverses of every level, Cholesky of the coarsest.
 
     ``floor`` (N,): a lower bound of the eigenvalues of each fine diagonal block (the inertia
@@ -108,7 +113,10 @@ def setup_levels(fine, kind, constrained, floor, mg):
     pinned vertex's filtered block is I (bound 1).
     The block inverses keep to these bounds (:func:`~clothtool.vec3.spd_inverse3`): contact
     barriers near their singularity store blocks of 1e22·m/ĥ² whose small eigenvalues
-    rounding has erased, and the plain cofactor inverse divided by a zero determinant."""
+    rounding has erased, and the plain cofactor inverse divided by a zero determinant.
+    Those blocks (:func:`~clothtool.vec3.cofactor_inverse3` False) are left to
+    :func:`eigen_inverses`: each stays in its slot of the inverses, its node and bound in
+    ``pending`` and ``pending_floor``; returns their number."""
     node_off, block_off, row_ptr, row_off, col, agg, slot_map, values, diag_inv, coarsest = mg[:10]
     levels = node_off.shape[0] - 1
     base = block_off[1]
@@ -117,6 +125,7 @@ def setup_levels(fine, kind, constrained, floor, mg):
     for i in range(node_off[-1]):
         bound[i] = 0.0
     block = np.empty((3, 3))
+    count = 0
     # level 0: filtered fine blocks → diagonal inverses and the level-1 sums
     for i in range(node_off[1]):
         lower = floor[i]
@@ -130,8 +139,10 @@ def setup_levels(fine, kind, constrained, floor, mg):
                 _filtered_block(fine[s], i, j, kind, block)
             else:
                 copy_into(fine[s], block)
-            if j == i:
-                spd_inverse3(block, lower, diag_inv[i])
+            if j == i and not cofactor_inverse3(block, diag_inv[i]):
+                copy_into(block, diag_inv[i])
+                pending[count], pending_floor[count] = i, lower
+                count += 1
             target = values[slot_map[s]]
             for p in range(3):
                 for q in range(3):
@@ -143,8 +154,10 @@ def setup_levels(fine, kind, constrained, floor, mg):
                 bound[node_off[lev + 1] + agg[n0 + i]] += bound[n0 + i]
             for s in range(row_ptr[r0 + i], row_ptr[r0 + i + 1]):
                 src = values[b0 + s - base]
-                if col[b0 + s] == i:
-                    spd_inverse3(src, bound[n0 + i], diag_inv[n0 + i])
+                if col[b0 + s] == i and not cofactor_inverse3(src, diag_inv[n0 + i]):
+                    copy_into(src, diag_inv[n0 + i])
+                    pending[count], pending_floor[count] = n0 + i, bound[n0 + i]
+                    count += 1
                 if lev < levels - 1:
                     target = values[block_off[lev + 1] + slot_map[b0 + s] - base]
                     for p in range(3):
@@ -160,6 +173,18 @@ def setup_levels(fine, kind, constrained, floor, mg):
                 for q in range(3):
                     coarsest[3 * i + p, 3 * j + q] = values[b0 + s - base, p, q]
     cholesky(coarsest)
+    return count
+
+
+@njit(cache=True)
+def eigen_inverses(diag_inv, nodes, floor):
+    """diag_inv[v] = :func:`~clothtool.vec3.eigen_inverse3` of the block held there, bound
+    floor[k], for the nodes v = nodes[k] :func:`setup_levels` left (its own kernel: a scene
+    without contact compiles none of it)."""
+    block = np.empty((3, 3))
+    for k in range(nodes.shape[0]):
+        copy_into(diag_inv[nodes[k]], block)
+        eigen_inverse3(block, floor[k], diag_inv[nodes[k]])
 
 
 @njit_inner(cache=True)
