@@ -102,6 +102,7 @@ solver:
   short_step_forcing: false  # after a step the line search shortened to s, the next linear solve asks for s times the forcing
   first_forcing: 0.0  # contact: Newton's first linear solve of a step asks for this relative residual (0 = solver.tolerance)
   first_cut_iterations: 20  # contact: Newton's first linear solve of a step stops after this many iterations when CCD cuts its guess short (not while sewing; 0 = off)
+  friction_velocity_test: false  # contact: with lagged friction pairs, Newton stops once its whole proposal's max|Δx|/h is below newton_tolerance (IPC's test, no decrement)
   line_search: true     # backtracking line search on the Newton steps
   stiffness_continuation: auto  # implicit: solve each step first with the membrane 10^n … 10× softer (stiff cloth at large steps); auto = n from k·ĥ²/m; 0 = off
   continuation_after: 20  # with stiffness_continuation: only solves Newton alone stalls on (unconverged after this many steps, half of them stiffness-bound); 0 = every solve

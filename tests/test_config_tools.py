@@ -26,7 +26,7 @@ SPEC_DEFAULTS = {  # the documented example, entry by entry, and the simulator's
                "newton_iterations": 20, "newton_tolerance": 0.04, "friction_velocity": 1.0e-4,
                "overshoot_bound": False, "slow_slip_bound": 0.0, "forcing_from_second": False,
                "short_step_forcing": False, "first_forcing": 0.0,
-               "first_cut_iterations": 20,
+               "first_cut_iterations": 20, "friction_velocity_test": False,
                "line_search": True, "stiffness_continuation": "auto", "continuation_after": 20,
                "max_speed": 1000.0, "iterations": 10, "pbd_variant": "gauss-seidel",
                "relaxation": 1.0, "pbd_stiffness": 1.0, "strain_limit": 0.0, "cfl": 0.5,

@@ -776,6 +776,13 @@ class Solver(Section):
                                         "stops after at most this many iterations (its "
                                         "proposal is cut at the first contact anyway); not "
                                         "while a garment's seams are sewn; 0 = off")
+    friction_velocity_test: bool = setting(False, flag,
+                                           "contact: while friction pairs are lagged, Newton "
+                                           "has converged when its whole proposal's largest "
+                                           "velocity correction max|Δx|/h is at most "
+                                           "newton_tolerance (IPC's test; the decrement is not "
+                                           "asked: friction's stick stiffness makes a tiny Δx "
+                                           "carry a large one); friction's own tests kept")
     line_search: bool = setting(True, flag,
                                 "halve a Newton step until the incremental potential does not "
                                 "increase")

@@ -35,7 +35,13 @@ and whose Newton decrement as a velocity, √(Δxᵀ H Δx / m_free) with m_free
 free vertices, are both at most ``newton_tolerance`` (m/s). The decrement weighs Δx by the
 stiffness it works against: on stiff cloth (1e6–1e7 N/m) the first Newton steps are tiny
 but far from converged, and the velocity test alone stopped there (the cloth locked, up
-to a metre from the converged step after 0.5 s). It is inexact (Eisenstat &
+to a metre from the converged step after 0.5 s). With ``solver.friction_velocity_test``,
+a step while friction pairs are lagged has also converged when the whole Newton proposal,
+cut or not, has max|Δx|/h at most ``newton_tolerance``, its decrement not asked (IPC's
+test; Li et al. 2020, "Incremental Potential Contact"): friction's stick stiffness
+2μλ/(ĥε_v) gives a tiny Δx a large decrement, and at stick–slip Newton ran to its cap of
+steps within the tolerance in velocity; friction's settled and re-lag tests still apply,
+and frictionless steps keep the decrement. It is inexact (Eisenstat &
 Walker 1996, "Choosing the forcing terms in an inexact Newton method"): the first
 PCG solves to ``solver.tolerance``, later ones to η = 0.9 (‖∇E_k‖/‖∇E_{k−1}‖)², at
 least ``solver.tolerance`` and at most 0.15 (with ``solver.forcing_from_second``, the second
@@ -465,6 +471,12 @@ class NewtonIntegrator(Integrator):
             slow = tol * tol * self._free_mass  # the decrement of a converged step, at most
             decrement = -float(np.sum(grad * dx))
             converged = step == 0.0 or (step == 1.0 and moved <= tol and decrement <= slow)
+            if solver.friction_velocity_test and not converged and any(t.lagged() for t in terms):
+                # IPC's test (Li et al. 2020): the whole proposal max‖Δx‖/h within the
+                # tolerance, cut or not, its decrement not asked: at stick–slip the stick
+                # stiffness 2μλ/(ĥε_v) gives a tiny Δx a large decrement, and the twist's
+                # steps ran to their cap within tolerance in velocity
+                converged = float(np.max(np.abs(dx))) / self.h <= tol
             # stiffness-bound: its velocities already small, its decrement not (at the solver's
             # tolerance: SDIRK2's first stage asks for a tenth of it)
             small = solver.newton_tolerance

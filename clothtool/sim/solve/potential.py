@@ -93,6 +93,10 @@ class Term:
     def relag(self, x):
         return 0.0
 
+    def lagged(self):
+        """Whether lagged friction pairs take part in this stage's potential."""
+        return False
+
     def finish(self, x, report):
         pass
 
@@ -298,6 +302,9 @@ class Contact(Term):
 
     def relag(self, x):
         return self.contact.relag(x, self._diagonal())
+
+    def lagged(self):
+        return self.contact.n_lag > 0
 
     def _diagonal(self):
         """The diagonal blocks (N, 3, 3) of Newton's matrix at its last assembly."""
