@@ -19,8 +19,8 @@ passes the contact's start check (no crossing, no pair inside the barrier's wall
 pair's jump to its mean moves a vertex up to half the weld distance, farther than the wall's
 depth that the barrier can press cloth to, so a fold pressed against the seam could be carried
 through; a weld that fails the check waits (sewing goes on) and, still failing at
-``sewing.time``, stops the run naming the check. Welding rather than keeping stiff stitches: a stitch held
-by the barrier stays a thickness open (1–2 mm), its pairs cost barrier terms for the rest of
+``sewing.time``, stops the run naming the check. Welding rather than keeping stiff stitches:
+a stitch held by the barrier stays a thickness open (1–2 mm), its pairs cost barrier terms for the rest of
 the run, and no hinge bends across it; the welded seam is closed (0 mm) and bends like cloth.
 """
 

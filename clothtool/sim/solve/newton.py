@@ -47,13 +47,13 @@ PCG solves to ``solver.tolerance``, later ones to η = 0.9 (‖∇E_k‖/‖∇E
 least ``solver.tolerance`` and at most 0.15 (with ``solver.forcing_from_second``, the second
 at 0.15 when Newton starts at x_n: that start is no iterate of the minimisation, and with
 friction BDF2's velocity there turns every slip; with ``solver.first_forcing`` η₀, the first
-at η₀ when Newton starts at x_n; with ``solver.short_step_forcing``, after a step the line
-search shortened to a fraction s, the next at s times η: at impact that step is long and CCD cuts it to a tenth or
+at η₀ when Newton starts at x_n: at impact that step is long and CCD cuts it to a tenth or
 a quarter, and a PCG to 1e-6 over it ran to its cap of iterations for a direction the next
 steps replace; with ``solver.first_cut_iterations`` k, that first PCG stops after k
 iterations when CCD over the step's candidates already cuts its guess short, except
-while a garment is sewn), each
-warm-started from what the line search left of the previous step. A single Newton step
+while a garment is sewn; with ``solver.short_step_forcing``, after a step the line search
+shortened to a fraction s, the next at s times η), each warm-started from what the line
+search left of the previous step. A single Newton step
 (``newton_iterations: 1``) starts from x_n instead, with the PCG guess h v_n: that is
 exactly Baraff–Witkin's linearised step
 (M − h ∂f/∂v − h² ∂f/∂x) Δv = h (f + h ∂f/∂x v_n) for backward Euler.
